@@ -1,0 +1,130 @@
+use glam::Vec3;
+
+/// A ray `o + t d` with its valid interval: a hit at `t` counts when `tmin <= t <= tmax`.
+///
+/// `direction` need not be unit length; `t` is measured in its units (as in Embree and
+/// `../shared/RAYS.md`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Ray {
+    pub origin: Vec3,
+    pub direction: Vec3,
+    pub tmin: f32,
+    pub tmax: f32,
+}
+
+impl Ray {
+    /// A ray over `[0, +inf]`.
+    pub fn new(origin: Vec3, direction: Vec3) -> Self {
+        Self {
+            origin,
+            direction,
+            tmin: 0.0,
+            tmax: f32::INFINITY,
+        }
+    }
+
+    /// The same ray restricted to `[tmin, tmax]`.
+    pub fn with_interval(self, tmin: f32, tmax: f32) -> Self {
+        Self { tmin, tmax, ..self }
+    }
+
+    /// The point at parameter `t`.
+    pub fn at(&self, t: f32) -> Vec3 {
+        self.origin + t * self.direction
+    }
+
+    /// Whether the ray can hit anything at all. Rays that cannot are answered as misses, never as
+    /// errors: a NaN or infinite origin or direction component, a NaN bound, or a direction whose
+    /// largest component is zero or subnormal (its reciprocal overflows, and any hit would lie
+    /// beyond `f32::MAX` times the scene's size).
+    pub fn is_valid(&self) -> bool {
+        let d = self.direction.abs().max_element();
+        self.origin.is_finite()
+            && self.direction.is_finite()
+            && d >= f32::MIN_POSITIVE
+            && !self.tmin.is_nan()
+            && !self.tmax.is_nan()
+    }
+}
+
+/// A ray with the per-ray constants of the box and triangle tests computed once, before traversal.
+///
+/// - For the slab test: `1/d` per axis and the sign of each direction component.
+/// - For the watertight triangle test (Woop, Benthin & Wald 2013): the dominant axis `kz` of the
+///   direction, the two others `kx`, `ky`, and the shear `(Sx, Sy, Sz) = (dx/dz, dy/dz, 1/dz)` that
+///   maps the ray onto the +z axis of a unit-length coordinate frame.
+///
+/// `tmax` is mutable state of a closest-hit traversal: it shrinks as hits are found.
+#[derive(Clone, Copy, Debug)]
+pub struct PreparedRay {
+    pub origin: Vec3,
+    pub inv_direction: Vec3,
+    pub negative: [bool; 3],
+    pub tmin: f32,
+    pub tmax: f32,
+    pub(crate) kx: usize,
+    pub(crate) ky: usize,
+    pub(crate) kz: usize,
+    pub(crate) shear: Vec3,
+}
+
+impl PreparedRay {
+    /// Relative widening of a box's slab interval (2^-18 ≈ 3.8e-6); see [`crate::geometry::Aabb::intersect_interval`].
+    pub const BOX_SLACK: f32 = 1.0 / 262_144.0;
+
+    /// Prepares a ray. The caller checks [`Ray::is_valid`] first; an invalid ray prepares into
+    /// constants that make no promise (they never produce a finite hit, but that is not a contract).
+    pub fn new(ray: &Ray) -> Self {
+        let d = ray.direction;
+        let a = d.abs();
+        let kz = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        let kx = (kz + 1) % 3;
+        let ky = (kx + 1) % 3;
+        let shear = Vec3::new(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        Self {
+            origin: ray.origin,
+            inv_direction: d.recip(),
+            negative: [
+                d.x.is_sign_negative(),
+                d.y.is_sign_negative(),
+                d.z.is_sign_negative(),
+            ],
+            tmin: ray.tmin,
+            tmax: ray.tmax,
+            kx,
+            ky,
+            kz,
+            shear,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validity() {
+        let ok = Ray::new(Vec3::ZERO, Vec3::X);
+        assert!(ok.is_valid());
+        assert!(!Ray::new(Vec3::ZERO, Vec3::ZERO).is_valid());
+        assert!(!Ray::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::X).is_valid());
+        assert!(!Ray::new(Vec3::ZERO, Vec3::new(f32::INFINITY, 0.0, 0.0)).is_valid());
+        assert!(!Ray::new(Vec3::ZERO, Vec3::splat(1e-40)).is_valid());
+        assert!(!ok.with_interval(f32::NAN, 1.0).is_valid());
+        assert!(ok.with_interval(0.0, f32::INFINITY).is_valid());
+    }
+
+    #[test]
+    fn shear_maps_direction_to_dominant_axis() {
+        let r = PreparedRay::new(&Ray::new(Vec3::ZERO, Vec3::new(1.0, -4.0, 2.0)));
+        assert_eq!((r.kz, r.kx, r.ky), (1, 2, 0));
+        assert_eq!(r.shear, Vec3::new(-0.5, -0.25, -0.25));
+    }
+}

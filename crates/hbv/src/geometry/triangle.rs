@@ -1,0 +1,194 @@
+use glam::{DVec3, Vec3};
+
+use super::{Aabb, PreparedRay};
+
+/// A triangle by its three vertices, in the order of the mesh file.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Triangle {
+    pub p0: Vec3,
+    pub p1: Vec3,
+    pub p2: Vec3,
+}
+
+/// Where a ray meets a triangle: `point = o + t d = (1-u-v) p0 + u p1 + v p2`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleHit {
+    pub t: f32,
+    pub u: f32,
+    pub v: f32,
+}
+
+impl Triangle {
+    pub fn new(p0: Vec3, p1: Vec3, p2: Vec3) -> Self {
+        Self { p0, p1, p2 }
+    }
+
+    pub fn bounds(&self) -> Aabb {
+        Aabb::new(
+            self.p0.min(self.p1).min(self.p2),
+            self.p0.max(self.p1).max(self.p2),
+        )
+    }
+
+    pub fn centroid(&self) -> Vec3 {
+        (self.p0 + self.p1 + self.p2) / 3.0
+    }
+
+    /// Twice the area's vector, `(p1 - p0) × (p2 - p0)`, in f64.
+    pub fn scaled_normal(&self) -> DVec3 {
+        let e1 = self.p1.as_dvec3() - self.p0.as_dvec3();
+        let e2 = self.p2.as_dvec3() - self.p0.as_dvec3();
+        e1.cross(e2)
+    }
+
+    /// Whether the triangle has zero area: its vertices are coincident or collinear.
+    ///
+    /// The edge vectors of f32 vertices are exact in f64 (for vertices within 2^29 of each other
+    /// in magnitude), and two products of equal real value round to the same f64, so an exactly
+    /// collinear triangle gives an exactly zero cross product. Such triangles are never hit: the
+    /// intersection test's determinant could be a rounding residue instead of zero.
+    pub fn is_degenerate(&self) -> bool {
+        self.scaled_normal() == DVec3::ZERO
+    }
+
+    /// Watertight ray/triangle intersection (Woop, Benthin & Wald 2013, "Watertight Ray/Triangle
+    /// Intersection", JCGT 2(1)), two-sided, over the closed interval `[ray.tmin, ray.tmax]`.
+    ///
+    /// The vertices are translated to the ray origin and sheared so that the ray becomes the +z
+    /// axis of a frame whose z is its dominant axis: for each vertex `P' = P - o`,
+    ///
+    /// ```text
+    ///   Px = P'[kx] - Sx P'[kz]      Py = P'[ky] - Sy P'[kz]      Pz = Sz P'[kz]
+    /// ```
+    ///
+    /// and the 2D edge functions of the projected triangle at the origin are
+    ///
+    /// ```text
+    ///   U = Cx By - Cy Bx   (weight of p0)      A = p0', B = p1', C = p2'
+    ///   V = Ax Cy - Ay Cx   (weight of p1)
+    ///   W = Bx Ay - By Ax   (weight of p2)
+    /// ```
+    ///
+    /// The ray meets the triangle when U, V, W share a sign (zeros allowed: edges and vertices
+    /// count), at `t = (U Az + V Bz + W Cz) / (U + V + W)`, with `u = V / det`, `v = W / det`.
+    ///
+    /// Why it is watertight: each vertex is transformed by the same operations whichever triangle
+    /// it belongs to, and each edge function is `fl(fl(a b) - fl(c d))`. Rounding is monotonic, so
+    /// the f32 result has the exact sign of `a b - c d` or is zero; only a zero can be wrong, and
+    /// then the three functions are recomputed in f64, where the products of f32 inputs are exact.
+    /// So the side of every shared edge (and every edge through a shared vertex) is decided
+    /// exactly and identically for both triangles that share it: no ray slips between them.
+    #[inline]
+    pub fn intersect(&self, ray: &PreparedRay) -> Option<TriangleHit> {
+        let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
+        let s = ray.shear;
+        let a = self.p0 - ray.origin;
+        let b = self.p1 - ray.origin;
+        let c = self.p2 - ray.origin;
+
+        let ax = a[kx] - s.x * a[kz];
+        let ay = a[ky] - s.y * a[kz];
+        let bx = b[kx] - s.x * b[kz];
+        let by = b[ky] - s.y * b[kz];
+        let cx = c[kx] - s.x * c[kz];
+        let cy = c[ky] - s.y * c[kz];
+
+        let mut u = cx * by - cy * bx;
+        let mut v = ax * cy - ay * cx;
+        let mut w = bx * ay - by * ax;
+
+        if u == 0.0 || v == 0.0 || w == 0.0 {
+            // A zero may be the rounding of a tiny nonzero value: decide exactly in f64.
+            let (ax, ay, bx, by, cx, cy) = (
+                ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64,
+            );
+            u = (cx * by - cy * bx) as f32;
+            v = (ax * cy - ay * cx) as f32;
+            w = (bx * ay - by * ax) as f32;
+            // Casting to f32 keeps signs, but a tiny f64 value may round to zero: that is a
+            // point on the edge within f32 resolution, counted as on the edge.
+        }
+
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + v + w;
+        if det == 0.0 {
+            // The ray is parallel to the triangle's plane.
+            return None;
+        }
+
+        let az = s.z * a[kz];
+        let bz = s.z * b[kz];
+        let cz = s.z * c[kz];
+        let t = (u * az + v * bz + w * cz) / det;
+        // NaN fails both comparisons.
+        if !(t >= ray.tmin && t <= ray.tmax) {
+            return None;
+        }
+        Some(TriangleHit {
+            t,
+            u: v / det,
+            v: w / det,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Ray;
+
+    fn tri() -> Triangle {
+        Triangle::new(Vec3::ZERO, Vec3::X, Vec3::Y)
+    }
+
+    fn hit(t: &Triangle, o: Vec3, d: Vec3) -> Option<TriangleHit> {
+        t.intersect(&PreparedRay::new(&Ray::new(o, d)))
+    }
+
+    #[test]
+    fn barycentrics_follow_rays_md_convention() {
+        let h = hit(&tri(), Vec3::new(0.25, 0.5, 1.0), -Vec3::Z).unwrap();
+        assert!((h.t - 1.0).abs() < 1e-6);
+        assert!((h.u - 0.25).abs() < 1e-6 && (h.v - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn two_sided_and_scaled_direction() {
+        let h = hit(&tri(), Vec3::new(0.2, 0.2, -2.0), Vec3::new(0.0, 0.0, 4.0)).unwrap();
+        assert!((h.t - 0.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn vertices_and_edges_count() {
+        for p in [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.5, 0.0, 0.0), Vec3::new(0.5, 0.5, 0.0)] {
+            assert!(hit(&tri(), p + Vec3::Z, -Vec3::Z).is_some(), "{p}");
+        }
+        assert!(hit(&tri(), Vec3::new(0.5, 0.5001, 1.0), -Vec3::Z).is_none());
+    }
+
+    #[test]
+    fn interval_is_closed() {
+        let r = Ray::new(Vec3::new(0.25, 0.25, 2.0), -Vec3::Z);
+        assert!(tri().intersect(&PreparedRay::new(&r.with_interval(2.0, 3.0))).is_some());
+        assert!(tri().intersect(&PreparedRay::new(&r.with_interval(0.0, 2.0))).is_some());
+        assert!(tri().intersect(&PreparedRay::new(&r.with_interval(0.0, 1.999))).is_none());
+        assert!(tri().intersect(&PreparedRay::new(&r.with_interval(2.001, 3.0))).is_none());
+    }
+
+    #[test]
+    fn parallel_ray_and_behind_origin_miss() {
+        assert!(hit(&tri(), Vec3::new(-1.0, 0.2, 0.0), Vec3::X).is_none());
+        assert!(hit(&tri(), Vec3::new(0.2, 0.2, 1.0), Vec3::Z).is_none());
+    }
+
+    #[test]
+    fn degenerate_detection() {
+        assert!(!tri().is_degenerate());
+        assert!(Triangle::new(Vec3::ZERO, Vec3::ONE, Vec3::splat(2.0)).is_degenerate());
+        assert!(Triangle::new(Vec3::ONE, Vec3::ONE, Vec3::ZERO).is_degenerate());
+        let third = 1.0f32 / 3.0;
+        assert!(Triangle::new(Vec3::ZERO, Vec3::splat(third), Vec3::splat(2.0 * third)).is_degenerate());
+    }
+}

@@ -1,0 +1,170 @@
+//! Indexed triangle meshes and the loaders that make them from OBJ, PLY and glTF files.
+//!
+//! The triangle order is the file's face order (polygons fan-triangulated in place), so a hit's
+//! primitive id can be compared with any other tool ray by ray.
+
+mod error;
+mod gltf;
+mod obj;
+mod ply;
+pub mod procedural;
+
+use std::path::Path;
+
+use glam::Vec3;
+
+use crate::geometry::{Aabb, Triangle};
+pub use error::{MeshError, MeshSource};
+
+/// An indexed triangle mesh: f32 positions and, per triangle, three u32 vertex indices.
+///
+/// Construction checks that every index is in range and every position is finite, so every
+/// consumer may rely on both. Degenerate (zero-area) triangles are kept, so that ids match the
+/// file, and counted; accelerators never report them as hit.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriangleMesh {
+    positions: Vec<Vec3>,
+    indices: Vec<[u32; 3]>,
+    degenerate: usize,
+}
+
+impl TriangleMesh {
+    /// Builds a mesh from positions and triangles, checking indices and coordinates.
+    pub fn new(positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Result<Self, MeshError> {
+        Self::from_parts(MeshSource::Arrays, positions, indices)
+    }
+
+    /// Builds a mesh whose errors name `source` (used by the loaders).
+    pub(crate) fn from_parts(
+        source: MeshSource,
+        positions: Vec<Vec3>,
+        indices: Vec<[u32; 3]>,
+    ) -> Result<Self, MeshError> {
+        if let Some(i) = positions.iter().position(|p| !p.is_finite()) {
+            return Err(MeshError::invalid(
+                source,
+                format!("vertex {i}"),
+                format!("coordinate is not finite: {}", positions[i]),
+            ));
+        }
+        let n = positions.len();
+        for (f, tri) in indices.iter().enumerate() {
+            if let Some(&bad) = tri.iter().find(|&&i| i as usize >= n) {
+                return Err(MeshError::invalid(
+                    source,
+                    format!("face {f}"),
+                    format!("vertex index {bad} out of range (the mesh has {n} vertices)"),
+                ));
+            }
+        }
+        let mut mesh = Self {
+            positions,
+            indices,
+            degenerate: 0,
+        };
+        mesh.degenerate = mesh.triangles().filter(Triangle::is_degenerate).count();
+        Ok(mesh)
+    }
+
+    /// Loads a mesh, choosing the reader by the file's extension: `.obj`, `.ply`, `.gltf`, `.glb`.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, MeshError> {
+        let path = path.as_ref();
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("obj") => obj::load(path),
+            Some("ply") => ply::load(path),
+            Some("gltf") | Some("glb") => gltf::load(path),
+            _ => Err(MeshError::UnsupportedFormat {
+                source_name: path.into(),
+            }),
+        }
+    }
+
+    pub fn positions(&self) -> &[Vec3] {
+        &self.positions
+    }
+
+    pub fn indices(&self) -> &[[u32; 3]] {
+        &self.indices
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.indices.is_empty()
+    }
+
+    /// Triangle `i` (its vertices in file order). Panics when `i` is out of range, like indexing.
+    #[inline]
+    pub fn triangle(&self, i: usize) -> Triangle {
+        let [a, b, c] = self.indices[i];
+        Triangle::new(
+            self.positions[a as usize],
+            self.positions[b as usize],
+            self.positions[c as usize],
+        )
+    }
+
+    /// All triangles in face order.
+    pub fn triangles(&self) -> impl ExactSizeIterator<Item = Triangle> + '_ {
+        (0..self.indices.len()).map(|i| self.triangle(i))
+    }
+
+    /// Number of zero-area triangles (kept, never hit).
+    pub fn degenerate_count(&self) -> usize {
+        self.degenerate
+    }
+
+    /// The box of the vertices used by triangles (unused vertices do not count).
+    pub fn bounds(&self) -> Aabb {
+        self.triangles()
+            .fold(Aabb::EMPTY, |b, t| b.union(&t.bounds()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rejects_out_of_range_index_naming_the_face() {
+        let err = TriangleMesh::new(vec![Vec3::ZERO; 3], vec![[0, 1, 2], [0, 1, 3]]).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            "mesh arrays: face 1: vertex index 3 out of range (the mesh has 3 vertices)"
+        );
+    }
+
+    #[test]
+    fn rejects_non_finite_vertex() {
+        let err = TriangleMesh::new(
+            vec![Vec3::ZERO, Vec3::new(0.0, f32::NAN, 0.0)],
+            vec![],
+        )
+        .unwrap_err();
+        assert!(err.to_string().starts_with("mesh arrays: vertex 1: coordinate is not finite"));
+    }
+
+    #[test]
+    fn counts_degenerate_triangles() {
+        let m = TriangleMesh::new(
+            vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::X * 2.0],
+            vec![[0, 1, 2], [0, 1, 3], [2, 2, 2]],
+        )
+        .unwrap();
+        assert_eq!(m.triangle_count(), 3);
+        assert_eq!(m.degenerate_count(), 2);
+    }
+
+    #[test]
+    fn unknown_extension_is_an_error() {
+        let err = TriangleMesh::load("scene.stl").unwrap_err();
+        assert!(matches!(err, MeshError::UnsupportedFormat { .. }));
+        assert!(err.to_string().contains("scene.stl"));
+    }
+}

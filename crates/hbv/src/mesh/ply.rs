@@ -1,0 +1,7 @@
+use std::path::Path;
+
+use super::{MeshError, TriangleMesh};
+
+pub(super) fn load(path: &Path) -> Result<TriangleMesh, MeshError> {
+    Err(MeshError::invalid(path, "file", "ply loader not written yet"))
+}

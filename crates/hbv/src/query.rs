@@ -1,0 +1,69 @@
+//! The queries every acceleration structure answers, single and in parallel batches.
+
+use rayon::prelude::*;
+
+use crate::geometry::Ray;
+use crate::stats::TraversalStats;
+
+/// The closest intersection of a ray with a mesh.
+///
+/// `prim` is the triangle's index in the mesh's face order; the hit point is
+/// `ray.at(t) = (1-u-v) p0 + u p1 + v p2` for that triangle's vertices in file order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Hit {
+    pub t: f32,
+    pub prim: u32,
+    pub u: f32,
+    pub v: f32,
+}
+
+impl Hit {
+    /// Whether `self` should replace `best` as the closest hit: nearer, or as near with a smaller
+    /// primitive id. The tie rule makes every structure's answer independent of its traversal
+    /// order, so that two structures can be compared exactly.
+    #[inline]
+    pub fn is_closer_than(&self, best: &Option<Hit>) -> bool {
+        match best {
+            None => true,
+            Some(b) => self.t < b.t || (self.t == b.t && self.prim < b.prim),
+        }
+    }
+}
+
+/// A structure that answers ray queries on one mesh: closest hit and any hit.
+///
+/// Invalid rays (see [`Ray::is_valid`]) miss. Degenerate triangles are never hit. A hit at `t`
+/// counts when `ray.tmin <= t <= ray.tmax`.
+pub trait Accelerator: Send + Sync {
+    /// The closest hit along the ray, ties broken towards the smaller primitive id.
+    fn intersect(&self, ray: &Ray) -> Option<Hit>;
+
+    /// Whether anything is hit along the ray; stops at the first hit found.
+    fn occluded(&self, ray: &Ray) -> bool;
+
+    /// [`Accelerator::intersect`], adding the work done to `stats`.
+    fn intersect_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> Option<Hit>;
+
+    /// [`Accelerator::occluded`], adding the work done to `stats`.
+    fn occluded_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> bool;
+
+    /// Closest hits of many rays, in parallel on the current rayon pool.
+    fn intersect_batch(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
+        rays.par_iter()
+            .with_min_len(BATCH_GRAIN)
+            .map(|r| self.intersect(r))
+            .collect()
+    }
+
+    /// Any-hit answers for many rays, in parallel on the current rayon pool.
+    fn occluded_batch(&self, rays: &[Ray]) -> Vec<bool> {
+        rays.par_iter()
+            .with_min_len(BATCH_GRAIN)
+            .map(|r| self.occluded(r))
+            .collect()
+    }
+}
+
+/// Rays handed to one rayon task at least: enough to hide the scheduling cost (~1 µs) behind
+/// work (~1 µs per ray), few enough to balance load on many cores.
+const BATCH_GRAIN: usize = 256;
