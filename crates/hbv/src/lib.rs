@@ -16,3 +16,7 @@ pub mod stats;
 
 pub use query::{Accelerator, Hit};
 pub use stats::TraversalStats;
+pub mod bvh;
+mod brute_force;
+
+pub use brute_force::BruteForce;

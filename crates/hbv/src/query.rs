@@ -3,7 +3,7 @@
 use rayon::prelude::*;
 
 use crate::geometry::Ray;
-use crate::stats::TraversalStats;
+use crate::stats::{Counter, NoCount, TraversalStats};
 
 /// The closest intersection of a ray with a mesh.
 ///
@@ -67,3 +67,43 @@ pub trait Accelerator: Send + Sync {
 /// Rays handed to one rayon task at least: enough to hide the scheduling cost (~1 µs) behind
 /// work (~1 µs per ray), few enough to balance load on many cores.
 const BATCH_GRAIN: usize = 256;
+
+/// The two traversal kernels of a structure, generic over what they count.
+///
+/// Implementing this gives [`Accelerator`] for free: the plain queries run the kernels with
+/// [`NoCount`] (the counting compiles away) and the counted ones with [`TraversalStats`].
+pub trait TraversalKernel: Send + Sync {
+    /// Closest hit, counting into `counter`. The ray is valid (checked by the caller).
+    fn closest_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit>;
+
+    /// Any hit, counting into `counter`. The ray is valid (checked by the caller).
+    fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool;
+}
+
+impl<K: TraversalKernel> Accelerator for K {
+    #[inline]
+    fn intersect(&self, ray: &Ray) -> Option<Hit> {
+        if !ray.is_valid() {
+            return None;
+        }
+        self.closest_hit(ray, &mut NoCount)
+    }
+
+    #[inline]
+    fn occluded(&self, ray: &Ray) -> bool {
+        ray.is_valid() && self.any_hit(ray, &mut NoCount)
+    }
+
+    fn intersect_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> Option<Hit> {
+        stats.rays += 1;
+        if !ray.is_valid() {
+            return None;
+        }
+        self.closest_hit(ray, stats)
+    }
+
+    fn occluded_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> bool {
+        stats.rays += 1;
+        ray.is_valid() && self.any_hit(ray, stats)
+    }
+}

@@ -99,8 +99,10 @@ impl Aabb {
     #[inline]
     pub fn intersect_interval(&self, ray: &PreparedRay) -> Option<(f32, f32)> {
         let (near, far) = self.slab_distances(ray);
-        let near = (near - near.abs() * PreparedRay::BOX_SLACK).max(ray.tmin);
-        let far = (far + far.abs() * PreparedRay::BOX_SLACK).min(ray.tmax);
+        // Scaling (not adding |x| · slack) keeps infinities infinite instead of making NaN.
+        const SLACK: f32 = PreparedRay::BOX_SLACK;
+        let near = (near * if near > 0.0 { 1.0 - SLACK } else { 1.0 + SLACK }).max(ray.tmin);
+        let far = (far * if far > 0.0 { 1.0 + SLACK } else { 1.0 - SLACK }).min(ray.tmax);
         (near <= far).then_some((near, far))
     }
 

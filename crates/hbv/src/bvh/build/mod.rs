@@ -1,0 +1,19 @@
+//! Builders: each turns a mesh into a [`BuildTree`](crate::bvh::BuildTree), knowing nothing of
+//! how the tree will be laid out or traversed.
+
+mod insertion;
+mod order;
+
+pub use insertion::{InsertionBuilder, InsertionConfig};
+pub use order::InsertionOrder;
+
+use crate::geometry::Aabb;
+use crate::mesh::TriangleMesh;
+
+/// The box of every triangle of `mesh`, in face order; the empty box for a degenerate triangle,
+/// which builders leave out of the tree (it is never hit).
+pub fn primitive_bounds(mesh: &TriangleMesh) -> Vec<Aabb> {
+    mesh.triangles()
+        .map(|t| if t.is_degenerate() { Aabb::EMPTY } else { t.bounds() })
+        .collect()
+}

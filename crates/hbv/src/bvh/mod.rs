@@ -1,0 +1,11 @@
+//! Bounding volume hierarchies: the build-time tree, its builders and cost, and its layouts.
+
+pub mod build;
+pub mod cost;
+pub mod layout;
+pub mod morton;
+pub mod placement;
+mod tree;
+
+pub use cost::{expected_tests, sah_cost, SahWeights};
+pub use tree::{BuildNode, BuildTree, InvariantError, NodeContent, NodeId, TreeShape};
