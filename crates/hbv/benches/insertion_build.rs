@@ -11,7 +11,10 @@ use std::time::Duration;
 
 fn insertion(c: &mut Criterion) {
     let mut group = c.benchmark_group("insertion_build");
-    group.sample_size(10).warm_up_time(Duration::from_millis(500)).measurement_time(Duration::from_secs(5));
+    group
+        .sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(5));
     for triangles in [10_000u32, 100_000, 1_000_000] {
         // A torus of m × n quads, m = 2n: 4 n² triangles.
         let n = ((triangles / 4) as f32).sqrt().round() as u32;
@@ -22,8 +25,13 @@ fn insertion(c: &mut Criterion) {
             ("input", InsertionOrder::Input),
             ("morton", InsertionOrder::Morton),
         ] {
-            let builder = InsertionBuilder::new(InsertionConfig { order, max_leaf_size: 1 });
-            group.bench_with_input(BenchmarkId::new(name, triangles), &mesh, |b, mesh| b.iter(|| builder.build(mesh)));
+            let builder = InsertionBuilder::new(InsertionConfig {
+                order,
+                max_leaf_size: 1,
+            });
+            group.bench_with_input(BenchmarkId::new(name, triangles), &mesh, |b, mesh| {
+                b.iter(|| builder.build(mesh))
+            });
         }
     }
     group.finish();

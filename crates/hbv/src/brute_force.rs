@@ -32,7 +32,12 @@ impl TraversalKernel for BruteForce {
         counter.triangles_tested(self.triangles.len() as u32);
         for &(prim, tri) in &self.triangles {
             if let Some(h) = tri.intersect(&prepared) {
-                let hit = Hit { t: h.t, prim, u: h.u, v: h.v };
+                let hit = Hit {
+                    t: h.t,
+                    prim,
+                    u: h.u,
+                    v: h.v,
+                };
                 // Face order and a strict `<` give the smallest id among equal `t`.
                 if hit.is_closer_than(&best) {
                     best = Some(hit);

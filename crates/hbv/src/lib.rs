@@ -16,7 +16,7 @@ pub mod stats;
 
 pub use query::{Accelerator, Hit};
 pub use stats::TraversalStats;
-pub mod bvh;
 mod brute_force;
+pub mod bvh;
 
 pub use brute_force::BruteForce;

@@ -10,13 +10,21 @@ use proptest::prelude::*;
 
 /// Builds the accelerator under test with the given insertion options.
 fn bvh(mesh: &TriangleMesh, order: InsertionOrder, max_leaf_size: usize) -> RecursiveLayout {
-    let tree = InsertionBuilder::new(InsertionConfig { order, max_leaf_size }).build(mesh);
+    let tree = InsertionBuilder::new(InsertionConfig {
+        order,
+        max_leaf_size,
+    })
+    .build(mesh);
     RecursiveLayout::new(&tree, mesh)
 }
 
 /// Asserts that `accel` and brute force agree on every ray: closest hits identical (same `t`,
 /// same `prim` under the shared tie rule, same barycentrics), any-hit identical.
-fn assert_agrees(mesh: &TriangleMesh, accel: &dyn Accelerator, rays: &[Ray]) -> Result<(), TestCaseError> {
+fn assert_agrees(
+    mesh: &TriangleMesh,
+    accel: &dyn Accelerator,
+    rays: &[Ray],
+) -> Result<(), TestCaseError> {
     let reference = BruteForce::new(mesh);
     for (i, ray) in rays.iter().enumerate() {
         let want = reference.intersect(ray);
@@ -27,12 +35,26 @@ fn assert_agrees(mesh: &TriangleMesh, accel: &dyn Accelerator, rays: &[Ray]) -> 
                 let rel = (w.t - g.t).abs() / w.t.abs().max(1e-30);
                 prop_assert!(rel <= 1e-6, "ray {i} {ray:?}: t {} vs {}", w.t, g.t);
                 if w.prim != g.prim {
-                    prop_assert_eq!(w.t, g.t, "ray {} {:?}: prims {} vs {}", i, ray, w.prim, g.prim);
+                    prop_assert_eq!(
+                        w.t,
+                        g.t,
+                        "ray {} {:?}: prims {} vs {}",
+                        i,
+                        ray,
+                        w.prim,
+                        g.prim
+                    );
                 }
             }
             _ => prop_assert!(false, "ray {i} {ray:?}: brute force {want:?}, BVH {got:?}"),
         }
-        prop_assert_eq!(reference.occluded(ray), accel.occluded(ray), "any hit, ray {} {:?}", i, ray);
+        prop_assert_eq!(
+            reference.occluded(ray),
+            accel.occluded(ray),
+            "any hit, ray {} {:?}",
+            i,
+            ray
+        );
     }
     Ok(())
 }
@@ -79,7 +101,8 @@ fn soup() -> impl Strategy<Value = TriangleMesh> {
 
 /// A closed torus with shared edges, randomly sized and placed.
 fn closed_mesh() -> impl Strategy<Value = TriangleMesh> {
-    (scale(), 3u32..24, 3u32..12, point(1.0)).prop_map(|(s, m, n, c)| torus(c * s, 2.0 * s, 0.7 * s, m, n))
+    (scale(), 3u32..24, 3u32..12, point(1.0))
+        .prop_map(|(s, m, n, c)| torus(c * s, 2.0 * s, 0.7 * s, m, n))
 }
 
 /// A ray aimed at the mesh in one of the adversarial ways.
@@ -88,40 +111,71 @@ fn ray_for(mesh: &TriangleMesh) -> impl Strategy<Value = Ray> {
     let (lo, hi) = (b.min, b.max);
     let ext = (hi - lo).max_element().max(1e-30);
     let n = mesh.triangle_count();
-    let inside = move || (0.0f32..1.0, 0.0f32..1.0, 0.0f32..1.0).prop_map(move |(x, y, z)| lo + (hi - lo) * Vec3::new(x, y, z));
+    let inside = move || {
+        (0.0f32..1.0, 0.0f32..1.0, 0.0f32..1.0)
+            .prop_map(move |(x, y, z)| lo + (hi - lo) * Vec3::new(x, y, z))
+    };
     let dir = || point(1.0).prop_filter("nonzero", |d| d.length() > 1e-3);
-    let axis = || (0usize..3, any::<bool>(), any::<bool>()).prop_map(|(k, neg, negzero)| {
-        let z = if negzero { -0.0 } else { 0.0 };
-        let mut d = Vec3::splat(z);
-        d[k] = if neg { -1.0 } else { 1.0 };
-        d
-    });
+    let axis = || {
+        (0usize..3, any::<bool>(), any::<bool>()).prop_map(|(k, neg, negzero)| {
+            let z = if negzero { -0.0 } else { 0.0 };
+            let mut d = Vec3::splat(z);
+            d[k] = if neg { -1.0 } else { 1.0 };
+            d
+        })
+    };
     let mesh = mesh.clone();
     let on_surface = (0..n, 0.0f32..1.0, 0.0f32..1.0).prop_map(move |(i, a, b)| {
         let t = mesh.triangle(i);
-        let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
+        let (a, b) = if a + b > 1.0 {
+            (1.0 - a, 1.0 - b)
+        } else {
+            (a, b)
+        };
         t.p0 + (t.p1 - t.p0) * a + (t.p2 - t.p0) * b
     });
     prop_oneof![
         (inside(), dir()).prop_map(|(o, d)| Ray::new(o, d)),
         (inside(), axis()).prop_map(|(o, d)| Ray::new(o, d)),
         // Zero components in one or two axes.
-        (inside(), dir(), 0usize..3).prop_map(|(o, mut d, k)| { d[k] = 0.0; if d == Vec3::ZERO { d.x = 1.0 } Ray::new(o, d) }),
+        (inside(), dir(), 0usize..3).prop_map(|(o, mut d, k)| {
+            d[k] = 0.0;
+            if d == Vec3::ZERO {
+                d.x = 1.0
+            }
+            Ray::new(o, d)
+        }),
         // From outside at the box, with a scaled direction.
         (point(1.0), inside(), 0.01f32..100.0).prop_map(move |(o, target, k)| {
             let o = (lo + hi) * 0.5 + o.normalize_or(Vec3::X) * 3.0 * ext;
             Ray::new(o, (target - o) * k / ext)
         }),
         // From a surface point, with tmin = 0 or a little above.
-        (on_surface.clone(), dir(), prop_oneof![Just(0.0f32), Just(1e-5 * ext)]).prop_map(|(o, d, tmin)| Ray::new(o, d).with_interval(tmin, f32::INFINITY)),
+        (
+            on_surface.clone(),
+            dir(),
+            prop_oneof![Just(0.0f32), Just(1e-5 * ext)]
+        )
+            .prop_map(|(o, d, tmin)| Ray::new(o, d).with_interval(tmin, f32::INFINITY)),
         // Finite segments.
-        (inside(), dir(), 0.0f32..1.0, 0.0f32..2.0).prop_map(move |(o, d, a, len)| Ray::new(o, d).with_interval(a * ext, (a + len) * ext)),
+        (inside(), dir(), 0.0f32..1.0, 0.0f32..2.0)
+            .prop_map(move |(o, d, a, len)| Ray::new(o, d).with_interval(a * ext, (a + len) * ext)),
         // Invalid rays: must miss.
-        (inside(), prop_oneof![Just(Vec3::ZERO), Just(Vec3::new(f32::NAN, 1.0, 0.0)), Just(Vec3::new(f32::INFINITY, 0.0, 0.0))]).prop_map(|(o, d)| Ray::new(o, d)),
+        (
+            inside(),
+            prop_oneof![
+                Just(Vec3::ZERO),
+                Just(Vec3::new(f32::NAN, 1.0, 0.0)),
+                Just(Vec3::new(f32::INFINITY, 0.0, 0.0))
+            ]
+        )
+            .prop_map(|(o, d)| Ray::new(o, d)),
     ]
 }
 
-fn mesh_and_rays(mesh: impl Strategy<Value = TriangleMesh>) -> impl Strategy<Value = (TriangleMesh, Vec<Ray>)> {
+fn mesh_and_rays(
+    mesh: impl Strategy<Value = TriangleMesh>,
+) -> impl Strategy<Value = (TriangleMesh, Vec<Ray>)> {
     mesh.prop_flat_map(|m| {
         let rays = prop::collection::vec(ray_for(&m), 1..64);
         (Just(m), rays)
@@ -129,7 +183,7 @@ fn mesh_and_rays(mesh: impl Strategy<Value = TriangleMesh>) -> impl Strategy<Val
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(200))]
+    #![proptest_config(ProptestConfig::with_cases(1000))]
 
     #[test]
     fn soup_closest_and_any_hit_equal_brute_force((mesh, rays) in mesh_and_rays(soup()), order in order(), leaf in 1usize..5) {
@@ -158,8 +212,14 @@ fn hits_at_exactly_tmin_and_tmax_count() {
     for k in 0..200 {
         let a = k as f32 * 0.1;
         let ray = Ray::new(Vec3::new(0.0, 0.0, 0.1), Vec3::new(a.cos(), a.sin(), 0.05));
-        let Some(h) = reference.intersect(&ray) else { continue };
-        for r in [ray.with_interval(h.t, h.t), ray.with_interval(0.0, h.t), ray.with_interval(h.t, f32::INFINITY)] {
+        let Some(h) = reference.intersect(&ray) else {
+            continue;
+        };
+        for r in [
+            ray.with_interval(h.t, h.t),
+            ray.with_interval(0.0, h.t),
+            ray.with_interval(h.t, f32::INFINITY),
+        ] {
             assert_eq!(accel.intersect(&r), Some(h), "{r:?}");
             assert!(accel.occluded(&r));
         }
@@ -172,7 +232,11 @@ fn hits_at_exactly_tmin_and_tmax_count() {
 fn empty_and_all_degenerate_meshes_never_hit() {
     let ray = Ray::new(Vec3::new(0.1, 0.1, -1.0), Vec3::Z);
     let empty = TriangleMesh::new(vec![], vec![]).unwrap();
-    let flat = TriangleMesh::new(vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0], vec![[0, 1, 2], [0, 0, 0]]).unwrap();
+    let flat = TriangleMesh::new(
+        vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0],
+        vec![[0, 1, 2], [0, 0, 0]],
+    )
+    .unwrap();
     for mesh in [empty, flat] {
         let accel = bvh(&mesh, InsertionOrder::default(), 1);
         assert_eq!(accel.intersect(&ray), None);

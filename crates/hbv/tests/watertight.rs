@@ -12,7 +12,12 @@ use hbv::{Accelerator, BruteForce, TriangleMesh};
 fn targets(mesh: &TriangleMesh) -> Vec<Vec3> {
     let mut t: Vec<Vec3> = mesh.positions().to_vec();
     for tri in mesh.triangles() {
-        t.extend([(tri.p0 + tri.p1) * 0.5, (tri.p1 + tri.p2) * 0.5, (tri.p2 + tri.p0) * 0.5, tri.centroid()]);
+        t.extend([
+            (tri.p0 + tri.p1) * 0.5,
+            (tri.p1 + tri.p2) * 0.5,
+            (tri.p2 + tri.p0) * 0.5,
+            tri.centroid(),
+        ]);
     }
     t
 }
@@ -28,8 +33,16 @@ fn misses(mesh: &TriangleMesh, origins: &[Vec3]) -> (usize, usize, usize) {
         .iter()
         .flat_map(|&o| targets.iter().map(move |&t| Ray::new(o, t - o)))
         .collect();
-    let bvh_misses = bvh.intersect_batch(&rays).iter().filter(|h| h.is_none()).count();
-    let brute_misses = brute.intersect_batch(&rays).iter().filter(|h| h.is_none()).count();
+    let bvh_misses = bvh
+        .intersect_batch(&rays)
+        .iter()
+        .filter(|h| h.is_none())
+        .count();
+    let brute_misses = brute
+        .intersect_batch(&rays)
+        .iter()
+        .filter(|h| h.is_none())
+        .count();
     let occlusion_misses = bvh.occluded_batch(&rays).iter().filter(|&&o| !o).count();
     (bvh_misses, brute_misses, occlusion_misses)
 }
@@ -51,7 +64,11 @@ fn icospheres_are_watertight_at_vertices_and_edges() {
                 center + Vec3::new(-0.41, 0.3, 0.46) * radius,
             ];
             let m = misses(&mesh, &origins);
-            assert_eq!(m, (0, 0, 0), "icosphere at {center} radius {radius} subdivisions {subdivisions}");
+            assert_eq!(
+                m,
+                (0, 0, 0),
+                "icosphere at {center} radius {radius} subdivisions {subdivisions}"
+            );
         }
     }
 }
@@ -65,9 +82,18 @@ fn tori_are_watertight_at_vertices_and_edges() {
             .map(|k| {
                 let a = k as f32 * 1.1;
                 let r = (2.0 + 0.3 * (k as f32 - 2.5) / 2.5) * scale;
-                center + Vec3::new(r * a.cos(), r * a.sin(), 0.2 * scale * (k as f32 - 3.0) / 3.0)
+                center
+                    + Vec3::new(
+                        r * a.cos(),
+                        r * a.sin(),
+                        0.2 * scale * (k as f32 - 3.0) / 3.0,
+                    )
             })
             .collect();
-        assert_eq!(misses(&mesh, &origins), (0, 0, 0), "torus at {center} scale {scale}");
+        assert_eq!(
+            misses(&mesh, &origins),
+            (0, 0, 0),
+            "torus at {center} scale {scale}"
+        );
     }
 }

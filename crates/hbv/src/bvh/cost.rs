@@ -126,7 +126,10 @@ mod tests {
             intersection: 3.0,
         };
         let c = sah_cost(&three_leaf_tree(), w);
-        assert!((c - (2.0 * 204.0 + 3.0 * 18.0) / 150.0).abs() < 1e-12, "{c}");
+        assert!(
+            (c - (2.0 * 204.0 + 3.0 * 18.0) / 150.0).abs() < 1e-12,
+            "{c}"
+        );
     }
 
     #[test]

@@ -45,6 +45,8 @@ mod tests {
         let b = Aabb::new(Vec3::ZERO, Vec3::ONE);
         assert_eq!(morton_code(Vec3::ZERO, &b), 0);
         assert_eq!(morton_code(Vec3::ONE, &b), (1u64 << 63) - 1);
-        assert!(morton_code(Vec3::new(0.6, 0.0, 0.0), &b) > morton_code(Vec3::new(0.4, 0.9, 0.9), &b));
+        assert!(
+            morton_code(Vec3::new(0.6, 0.0, 0.0), &b) > morton_code(Vec3::new(0.4, 0.9, 0.9), &b)
+        );
     }
 }

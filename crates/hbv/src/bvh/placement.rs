@@ -115,7 +115,12 @@ impl PlacementSearch {
     /// The placement of `item` that increases `Σ a_n SA(n)` least, and that increase.
     ///
     /// `max_leaf_size` bounds [`Placement::AddToLeaf`]. Ties go to the first candidate found.
-    pub fn find(&mut self, tree: &BuildTree, item: &PlacedItem, max_leaf_size: usize) -> (Placement, f32) {
+    pub fn find(
+        &mut self,
+        tree: &BuildTree,
+        item: &PlacedItem,
+        max_leaf_size: usize,
+    ) -> (Placement, f32) {
         let Some(root) = tree.root() else {
             return (Placement::Root, item.own_cost);
         };
@@ -130,7 +135,10 @@ impl PlacementSearch {
                 item.own_cost
             };
 
-        let mut best = (Placement::Pair(root), 2.0 * tree.node(root).bounds.union(x).surface_area() + item.own_cost);
+        let mut best = (
+            Placement::Pair(root),
+            2.0 * tree.node(root).bounds.union(x).surface_area() + item.own_cost,
+        );
         self.queue.clear();
         self.push_if_open(tree, root, 0.0, x, &leaf_has_room, best.1 - tail_bound);
 
@@ -159,7 +167,14 @@ impl PlacementSearch {
                         if pair < best.1 {
                             best = (Placement::Pair(c), pair);
                         }
-                        self.push_if_open(tree, c, descent_cost, x, &leaf_has_room, best.1 - tail_bound);
+                        self.push_if_open(
+                            tree,
+                            c,
+                            descent_cost,
+                            x,
+                            &leaf_has_room,
+                            best.1 - tail_bound,
+                        );
                     }
                 }
             }

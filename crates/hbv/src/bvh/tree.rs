@@ -210,7 +210,11 @@ impl BuildTree {
     /// - every node's box contains its children's boxes (or its triangles' boxes);
     /// - parent links match child lists; internal nodes and leaves are not empty;
     /// - leaves hold at most `max_leaf_size` triangles.
-    pub fn validate(&self, prim_bounds: &[Aabb], max_leaf_size: usize) -> Result<(), InvariantError> {
+    pub fn validate(
+        &self,
+        prim_bounds: &[Aabb],
+        max_leaf_size: usize,
+    ) -> Result<(), InvariantError> {
         let err = |s: String| Err(InvariantError(s));
         let mut seen = vec![false; prim_bounds.len()];
         let mut problem: Option<String> = None;
@@ -299,7 +303,9 @@ mod tests {
         let mut t = BuildTree::new();
         let a = t.push_leaf(vec![0], cube(0.0, 1.0));
         t.set_root(Some(a));
-        let err = t.validate(&[cube(0.0, 1.0), cube(0.0, 1.0)], 1).unwrap_err();
+        let err = t
+            .validate(&[cube(0.0, 1.0), cube(0.0, 1.0)], 1)
+            .unwrap_err();
         assert!(err.0.contains("triangle 1 is in no leaf"), "{err}");
         let err = t.validate(&[cube(0.0, 2.0)], 1).unwrap_err();
         assert!(err.0.contains("does not contain triangle 0"), "{err}");

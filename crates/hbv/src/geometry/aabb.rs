@@ -165,9 +165,15 @@ mod tests {
     fn ray_in_face_plane_with_zero_component_hits() {
         // Origin exactly on the plane y = 0 of the box, direction with y = 0 (and -0.0).
         for dy in [0.0f32, -0.0] {
-            let r = PreparedRay::new(&Ray::new(Vec3::new(-1.0, 0.0, 0.5), Vec3::new(1.0, dy, 0.0)));
+            let r = PreparedRay::new(&Ray::new(
+                Vec3::new(-1.0, 0.0, 0.5),
+                Vec3::new(1.0, dy, 0.0),
+            ));
             assert!(unit().hit_by(&r), "dy = {dy:?}");
-            let r = PreparedRay::new(&Ray::new(Vec3::new(-1.0, 1.0, 0.5), Vec3::new(1.0, dy, 0.0)));
+            let r = PreparedRay::new(&Ray::new(
+                Vec3::new(-1.0, 1.0, 0.5),
+                Vec3::new(1.0, dy, 0.0),
+            ));
             assert!(unit().hit_by(&r), "on max face, dy = {dy:?}");
         }
         let outside = PreparedRay::new(&Ray::new(Vec3::new(-1.0, 1.5, 0.5), Vec3::X));

@@ -162,7 +162,13 @@ mod tests {
 
     #[test]
     fn vertices_and_edges_count() {
-        for p in [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(0.5, 0.0, 0.0), Vec3::new(0.5, 0.5, 0.0)] {
+        for p in [
+            Vec3::ZERO,
+            Vec3::X,
+            Vec3::Y,
+            Vec3::new(0.5, 0.0, 0.0),
+            Vec3::new(0.5, 0.5, 0.0),
+        ] {
             assert!(hit(&tri(), p + Vec3::Z, -Vec3::Z).is_some(), "{p}");
         }
         assert!(hit(&tri(), Vec3::new(0.5, 0.5001, 1.0), -Vec3::Z).is_none());
@@ -171,10 +177,18 @@ mod tests {
     #[test]
     fn interval_is_closed() {
         let r = Ray::new(Vec3::new(0.25, 0.25, 2.0), -Vec3::Z);
-        assert!(tri().intersect(&PreparedRay::new(&r.with_interval(2.0, 3.0))).is_some());
-        assert!(tri().intersect(&PreparedRay::new(&r.with_interval(0.0, 2.0))).is_some());
-        assert!(tri().intersect(&PreparedRay::new(&r.with_interval(0.0, 1.999))).is_none());
-        assert!(tri().intersect(&PreparedRay::new(&r.with_interval(2.001, 3.0))).is_none());
+        assert!(tri()
+            .intersect(&PreparedRay::new(&r.with_interval(2.0, 3.0)))
+            .is_some());
+        assert!(tri()
+            .intersect(&PreparedRay::new(&r.with_interval(0.0, 2.0)))
+            .is_some());
+        assert!(tri()
+            .intersect(&PreparedRay::new(&r.with_interval(0.0, 1.999)))
+            .is_none());
+        assert!(tri()
+            .intersect(&PreparedRay::new(&r.with_interval(2.001, 3.0)))
+            .is_none());
     }
 
     #[test]
@@ -189,6 +203,8 @@ mod tests {
         assert!(Triangle::new(Vec3::ZERO, Vec3::ONE, Vec3::splat(2.0)).is_degenerate());
         assert!(Triangle::new(Vec3::ONE, Vec3::ONE, Vec3::ZERO).is_degenerate());
         let third = 1.0f32 / 3.0;
-        assert!(Triangle::new(Vec3::ZERO, Vec3::splat(third), Vec3::splat(2.0 * third)).is_degenerate());
+        assert!(
+            Triangle::new(Vec3::ZERO, Vec3::splat(third), Vec3::splat(2.0 * third)).is_degenerate()
+        );
     }
 }

@@ -142,12 +142,11 @@ mod tests {
 
     #[test]
     fn rejects_non_finite_vertex() {
-        let err = TriangleMesh::new(
-            vec![Vec3::ZERO, Vec3::new(0.0, f32::NAN, 0.0)],
-            vec![],
-        )
-        .unwrap_err();
-        assert!(err.to_string().starts_with("mesh arrays: vertex 1: coordinate is not finite"));
+        let err =
+            TriangleMesh::new(vec![Vec3::ZERO, Vec3::new(0.0, f32::NAN, 0.0)], vec![]).unwrap_err();
+        assert!(err
+            .to_string()
+            .starts_with("mesh arrays: vertex 1: coordinate is not finite"));
     }
 
     #[test]

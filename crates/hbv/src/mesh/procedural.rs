@@ -117,9 +117,8 @@ pub fn torus(
         for j in 0..n {
             let theta = TAU * j as f32 / n as f32;
             let r = major_radius + minor_radius * theta.cos();
-            positions.push(
-                center + Vec3::new(r * phi.cos(), r * phi.sin(), minor_radius * theta.sin()),
-            );
+            positions
+                .push(center + Vec3::new(r * phi.cos(), r * phi.sin(), minor_radius * theta.sin()));
         }
     }
     let id = |i: u32, j: u32| (i % m) * n + (j % n);
@@ -157,8 +156,8 @@ pub fn ground_plane(half: f32, height: f32, cells: u32) -> TriangleMesh {
 }
 
 /// The built-in scene that `hbv` uses when no mesh is given: a ground plane with a ring of
-/// tori and icospheres of varied size and tessellation, about `detail²` · 1,000 triangles
-/// (`detail = 4` gives about 60,000). Objects of different scales and densities, and large
+/// tori and icospheres of varied size and tessellation, about `detail²` · 8,000 triangles
+/// (`detail = 4` gives 132,480). Objects of different scales and densities, and large
 /// flat triangles beside small curved ones, make it a fair small test of a tree.
 pub fn default_scene(detail: u32) -> TriangleMesh {
     let d = detail.max(1);
@@ -181,7 +180,10 @@ pub fn default_scene(detail: u32) -> TriangleMesh {
     parts.append(&torus(Vec3::ZERO, 2.0, 0.5, 24 * d, 12 * d), |p| {
         p + Vec3::Z * 0.5
     });
-    parts.append(&icosphere(Vec3::new(0.0, 0.0, 2.2), 1.0, 2 + d.min(4)), |p| p);
+    parts.append(
+        &icosphere(Vec3::new(0.0, 0.0, 2.2), 1.0, 2 + d.min(4)),
+        |p| p,
+    );
     parts.finish()
 }
 

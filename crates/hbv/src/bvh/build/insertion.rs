@@ -86,7 +86,11 @@ mod tests {
         let bounds = primitive_bounds(&mesh);
         for order in orders() {
             for max_leaf_size in [1, 2, 4] {
-                let tree = InsertionBuilder::new(InsertionConfig { order, max_leaf_size }).build(&mesh);
+                let tree = InsertionBuilder::new(InsertionConfig {
+                    order,
+                    max_leaf_size,
+                })
+                .build(&mesh);
                 tree.validate(&bounds, max_leaf_size)
                     .unwrap_or_else(|e| panic!("{order:?} {max_leaf_size}: {e}"));
             }
@@ -102,8 +106,12 @@ mod tests {
         tree.walk(|id, _| {
             let n = tree.node(id);
             let union = match &n.content {
-                NodeContent::Internal(c) => c.iter().fold(crate::geometry::Aabb::EMPTY, |b, &c| b.union(&tree.node(c).bounds)),
-                NodeContent::Leaf(p) => p.iter().fold(crate::geometry::Aabb::EMPTY, |b, &p| b.union(&bounds[p as usize])),
+                NodeContent::Internal(c) => c.iter().fold(crate::geometry::Aabb::EMPTY, |b, &c| {
+                    b.union(&tree.node(c).bounds)
+                }),
+                NodeContent::Leaf(p) => p.iter().fold(crate::geometry::Aabb::EMPTY, |b, &p| {
+                    b.union(&bounds[p as usize])
+                }),
             };
             assert_eq!(n.bounds, union, "node {id}");
         });
@@ -112,15 +120,33 @@ mod tests {
     #[test]
     fn two_far_apart_pairs_are_grouped() {
         // Four unit triangles in two distant pairs: the optimal tree groups each pair.
-        let tri = |x: f32| [Vec3::new(x, 0.0, 0.0), Vec3::new(x + 1.0, 0.0, 0.0), Vec3::new(x, 1.0, 0.0)];
-        let positions: Vec<Vec3> = [0.0, 0.5, 100.0, 100.5].iter().flat_map(|&x| tri(x)).collect();
+        let tri = |x: f32| {
+            [
+                Vec3::new(x, 0.0, 0.0),
+                Vec3::new(x + 1.0, 0.0, 0.0),
+                Vec3::new(x, 1.0, 0.0),
+            ]
+        };
+        let positions: Vec<Vec3> = [0.0, 0.5, 100.0, 100.5]
+            .iter()
+            .flat_map(|&x| tri(x))
+            .collect();
         let indices = (0..4u32).map(|i| [3 * i, 3 * i + 1, 3 * i + 2]).collect();
         let mesh = TriangleMesh::new(positions, indices).unwrap();
-        let tree = InsertionBuilder::new(InsertionConfig { order: InsertionOrder::Input, max_leaf_size: 1 }).build(&mesh);
+        let tree = InsertionBuilder::new(InsertionConfig {
+            order: InsertionOrder::Input,
+            max_leaf_size: 1,
+        })
+        .build(&mesh);
         let root = tree.node(tree.root().unwrap());
         assert_eq!(root.arity(), 2);
         for &c in root.children() {
-            let mut prims: Vec<u32> = tree.node(c).children().iter().flat_map(|&l| tree.node(l).prims().to_vec()).collect();
+            let mut prims: Vec<u32> = tree
+                .node(c)
+                .children()
+                .iter()
+                .flat_map(|&l| tree.node(l).prims().to_vec())
+                .collect();
             prims.sort();
             assert!(prims == vec![0, 1] || prims == vec![2, 3], "{prims:?}");
         }

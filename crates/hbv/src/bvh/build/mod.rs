@@ -14,6 +14,12 @@ use crate::mesh::TriangleMesh;
 /// which builders leave out of the tree (it is never hit).
 pub fn primitive_bounds(mesh: &TriangleMesh) -> Vec<Aabb> {
     mesh.triangles()
-        .map(|t| if t.is_degenerate() { Aabb::EMPTY } else { t.bounds() })
+        .map(|t| {
+            if t.is_degenerate() {
+                Aabb::EMPTY
+            } else {
+                t.bounds()
+            }
+        })
         .collect()
 }

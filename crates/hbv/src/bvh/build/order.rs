@@ -36,10 +36,12 @@ impl InsertionOrder {
                 prims.shuffle(&mut Pcg64Mcg::seed_from_u64(seed));
             }
             InsertionOrder::Morton => {
-                let centers = prims
-                    .iter()
-                    .fold(Aabb::EMPTY, |b, &p| b.union_point(bounds[p as usize].center()));
-                prims.sort_unstable_by_key(|&p| (morton_code(bounds[p as usize].center(), &centers), p));
+                let centers = prims.iter().fold(Aabb::EMPTY, |b, &p| {
+                    b.union_point(bounds[p as usize].center())
+                });
+                prims.sort_unstable_by_key(|&p| {
+                    (morton_code(bounds[p as usize].center(), &centers), p)
+                });
             }
         }
     }

@@ -51,9 +51,16 @@ impl RecursiveLayout {
             layout.nodes[slot] = match &node.content {
                 NodeContent::Leaf(prims) => {
                     let first = layout.triangles.len() as u32;
-                    layout.triangles.extend(prims.iter().map(|&p| mesh.triangle(p as usize)));
+                    layout
+                        .triangles
+                        .extend(prims.iter().map(|&p| mesh.triangle(p as usize)));
                     layout.prim_ids.extend_from_slice(prims);
-                    PackedNode { bounds: node.bounds, first, count: prims.len() as u32, is_leaf: true }
+                    PackedNode {
+                        bounds: node.bounds,
+                        first,
+                        count: prims.len() as u32,
+                        is_leaf: true,
+                    }
                 }
                 NodeContent::Internal(children) => {
                     let first = layout.nodes.len();
@@ -61,7 +68,12 @@ impl RecursiveLayout {
                         layout.nodes.push(PackedNode::placeholder());
                         queue.push_back((c, first + k));
                     }
-                    PackedNode { bounds: node.bounds, first: first as u32, count: children.len() as u32, is_leaf: false }
+                    PackedNode {
+                        bounds: node.bounds,
+                        first: first as u32,
+                        count: children.len() as u32,
+                        is_leaf: false,
+                    }
                 }
             };
         }
@@ -114,7 +126,12 @@ impl RecursiveLayout {
 
 impl PackedNode {
     fn placeholder() -> Self {
-        Self { bounds: Aabb::EMPTY, first: 0, count: 0, is_leaf: true }
+        Self {
+            bounds: Aabb::EMPTY,
+            first: 0,
+            count: 0,
+            is_leaf: true,
+        }
     }
 }
 
@@ -125,7 +142,12 @@ impl TraversalKernel for RecursiveLayout {
         self.traverse(&mut prepared, counter, |ray, range, _| {
             for i in range {
                 if let Some(h) = self.triangles[i].intersect(ray) {
-                    let hit = Hit { t: h.t, prim: self.prim_ids[i], u: h.u, v: h.v };
+                    let hit = Hit {
+                        t: h.t,
+                        prim: self.prim_ids[i],
+                        u: h.u,
+                        v: h.v,
+                    };
                     if hit.is_closer_than(&best) {
                         best = Some(hit);
                         ray.tmax = h.t;
@@ -141,7 +163,9 @@ impl TraversalKernel for RecursiveLayout {
         let mut prepared = PreparedRay::new(ray);
         let mut found = false;
         self.traverse(&mut prepared, counter, |ray, range, _| {
-            found = self.triangles[range].iter().any(|t| t.intersect(ray).is_some());
+            found = self.triangles[range]
+                .iter()
+                .any(|t| t.intersect(ray).is_some());
             found
         });
         found

@@ -1,0 +1,123 @@
+//! Replacing a file atomically: readers see either the old file or the complete new one.
+
+use std::ffi::OsString;
+use std::fs::{self, File, OpenOptions};
+use std::io;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Tells apart the temporary files of concurrent writers in one process.
+static COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// Writes a file at `path` through `write`, atomically.
+///
+/// `write` fills a new temporary file `.{name}.tmp-{pid}-{n}` in the same directory as `path`;
+/// the file is then flushed to disk and renamed over `path`. If anything fails — `write` itself,
+/// the flush or the rename — the temporary file is removed and whatever was at `path` before is
+/// left untouched. `write` must flush any buffering it adds (a `BufWriter` dropped unflushed
+/// swallows its errors).
+///
+/// Every error names `path` and keeps the [`io::ErrorKind`] of its cause; a parent directory that
+/// does not exist is reported as such.
+pub fn write_atomically(
+    path: &Path,
+    write: impl FnOnce(&mut File) -> io::Result<()>,
+) -> io::Result<()> {
+    let fail = |e: io::Error, what: &str| {
+        io::Error::new(
+            e.kind(),
+            format!("cannot write {}: {what}: {e}", path.display()),
+        )
+    };
+    let name = path.file_name().ok_or_else(|| {
+        io::Error::new(
+            io::ErrorKind::InvalidInput,
+            format!("cannot write {}: not a file name", path.display()),
+        )
+    })?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    match fs::metadata(dir) {
+        Ok(m) if m.is_dir() => {}
+        Ok(_) => {
+            return Err(io::Error::new(
+                io::ErrorKind::NotADirectory,
+                format!(
+                    "cannot write {}: {} is not a directory",
+                    path.display(),
+                    dir.display()
+                ),
+            ))
+        }
+        Err(e) if e.kind() == io::ErrorKind::NotFound => {
+            return Err(io::Error::new(
+                io::ErrorKind::NotFound,
+                format!(
+                    "cannot write {}: directory {} does not exist",
+                    path.display(),
+                    dir.display()
+                ),
+            ))
+        }
+        Err(e) => {
+            return Err(fail(
+                e,
+                &format!("cannot access directory {}", dir.display()),
+            ))
+        }
+    }
+
+    let (tmp_path, mut file) = create_temporary(dir, name).map_err(|e| {
+        fail(
+            e,
+            &format!("cannot create a temporary file in {}", dir.display()),
+        )
+    })?;
+    let result = write(&mut file)
+        .and_then(|()| file.sync_all())
+        .map_err(|e| fail(e, "writing failed"))
+        .and_then(|()| {
+            drop(file);
+            fs::rename(&tmp_path, path)
+                .map_err(|e| fail(e, &format!("cannot rename {} over it", tmp_path.display())))
+        });
+    match result {
+        Ok(()) => {
+            // Make the rename itself durable; not every platform can open a directory for this.
+            if let Ok(d) = File::open(dir) {
+                let _ = d.sync_all();
+            }
+            Ok(())
+        }
+        Err(e) => {
+            let _ = fs::remove_file(&tmp_path);
+            Err(e)
+        }
+    }
+}
+
+/// Creates a new, empty temporary file for `name` in `dir`, never reusing an existing file.
+fn create_temporary(dir: &Path, name: &std::ffi::OsStr) -> io::Result<(PathBuf, File)> {
+    let mut tries = 0;
+    loop {
+        let mut tmp = OsString::from(".");
+        tmp.push(name);
+        tmp.push(format!(
+            ".tmp-{}-{}",
+            std::process::id(),
+            COUNTER.fetch_add(1, Ordering::Relaxed)
+        ));
+        let tmp_path = dir.join(tmp);
+        match OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&tmp_path)
+        {
+            Ok(file) => return Ok((tmp_path, file)),
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists && tries < 100 => tries += 1,
+            Err(e) => return Err(e),
+        }
+    }
+}

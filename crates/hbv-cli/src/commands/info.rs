@@ -1,0 +1,101 @@
+//! `hbv info`: the mesh, the tree built over it, and the tree's cost.
+
+use std::path::PathBuf;
+
+use clap::Args;
+use hbv::bvh::{expected_tests, sah_cost, SahWeights};
+use serde_json::json;
+
+use super::build_args::{load_mesh, BuildArgs};
+
+#[derive(Args)]
+pub struct InfoArgs {
+    /// Mesh file (.obj, .ply, .gltf, .glb); the built-in scene when omitted.
+    pub mesh: Option<PathBuf>,
+    #[command(flatten)]
+    pub build: BuildArgs,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
+    let (mesh, name, load_seconds) = load_mesh(args.mesh.as_deref())?;
+    let (tree, build_seconds) = args.build.build(&mesh);
+    let shape = tree.shape();
+    let weights = SahWeights::default();
+    let e = expected_tests(&tree);
+    let sah = sah_cost(&tree, weights);
+    let bounds = mesh.bounds();
+    let (lo, hi) = if bounds.is_empty() {
+        ([0.0; 3], [0.0; 3])
+    } else {
+        (bounds.min.to_array(), bounds.max.to_array())
+    };
+
+    if args.json {
+        let out = json!({
+            "mesh": name,
+            "triangles": mesh.triangle_count(),
+            "degenerate": mesh.degenerate_count(),
+            "vertices": mesh.positions().len(),
+            "bounds": { "min": lo, "max": hi },
+            "builder": "insertion",
+            "builder_options": args.build.describe(),
+            "load_seconds": load_seconds,
+            "build_seconds": build_seconds,
+            "nodes": shape.nodes,
+            "leaves": shape.leaves,
+            "depth_max": shape.depth_max,
+            "depth_mean": shape.depth_mean,
+            "arity_histogram": shape.arity_histogram,
+            "expected_tests": e,
+            "sah_cost": sah,
+            "sah_weights": { "traversal": weights.traversal, "intersection": weights.intersection },
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+        return Ok(());
+    }
+
+    let arity: Vec<String> = shape
+        .arity_histogram
+        .iter()
+        .enumerate()
+        .filter(|(_, &n)| n > 0)
+        .map(|(k, n)| format!("{k}: {n}"))
+        .collect();
+    println!("mesh        {name}");
+    println!(
+        "triangles   {} ({} degenerate, left out of the tree), {} vertices",
+        mesh.triangle_count(),
+        mesh.degenerate_count(),
+        mesh.positions().len()
+    );
+    println!(
+        "bounds      [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]",
+        lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+    );
+    println!("builder     {}", args.build.describe());
+    println!("load        {load_seconds:.3} s");
+    println!("build       {build_seconds:.3} s");
+    println!(
+        "nodes       {} ({} leaves, {} internal)",
+        shape.nodes,
+        shape.leaves,
+        shape.nodes - shape.leaves
+    );
+    println!(
+        "depth       max {}, mean {:.2} (leaves)",
+        shape.depth_max, shape.depth_mean
+    );
+    println!(
+        "arity       {} (children: internal nodes)",
+        arity.join(", ")
+    );
+    println!("E[X]        {e:.3} tests per line through the root (Σ a_n SA(n) / SA(root))");
+    println!(
+        "SAH cost    {sah:.3} (C_t = {}, C_i = {})",
+        weights.traversal, weights.intersection
+    );
+    Ok(())
+}

@@ -1,0 +1,95 @@
+//! `hbv trace`: a ray file in, a hit file out (formats of `../shared/RAYS.md`).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+use clap::Args;
+use hbv::bvh::layout::RecursiveLayout;
+use hbv::Accelerator;
+use hbv_cli::{hit_file, ray_file};
+use serde_json::json;
+
+use super::build_args::{load_mesh, thread_pool, BuildArgs};
+
+#[derive(Args)]
+pub struct TraceArgs {
+    /// Mesh file (.obj, .ply, .gltf, .glb).
+    pub mesh: PathBuf,
+    /// Ray file (.npz with origins, directions, optional tmin, tmax).
+    #[arg(long)]
+    pub rays: PathBuf,
+    /// Output file (.npz); written atomically (temporary file, then rename).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Any-hit query: write `occluded` instead of closest hits.
+    #[arg(long)]
+    pub occluded: bool,
+    /// Worker threads; 0 uses every core.
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    #[command(flatten)]
+    pub build: BuildArgs,
+    /// Print one JSON object of timings instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
+    let pool = thread_pool(args.threads)?;
+    let (mesh, _, load_seconds) = load_mesh(Some(&args.mesh))?;
+    let rays = ray_file::read_rays(&args.rays).context("cannot read rays")?;
+    let (tree, build_seconds) = pool.install(|| args.build.build(&mesh));
+    let accel = RecursiveLayout::new(&tree, &mesh);
+
+    let start = Instant::now();
+    let hits = if args.occluded {
+        let occluded = pool.install(|| accel.occluded_batch(&rays));
+        let trace_seconds = start.elapsed().as_secs_f64();
+        hit_file::write_occlusion(&args.out, &occluded).context("cannot write hits")?;
+        (occluded.iter().filter(|&&o| o).count(), trace_seconds)
+    } else {
+        let hits = pool.install(|| accel.intersect_batch(&rays));
+        let trace_seconds = start.elapsed().as_secs_f64();
+        hit_file::write_hits(&args.out, &hits).context("cannot write hits")?;
+        (hits.iter().filter(|h| h.is_some()).count(), trace_seconds)
+    };
+    let (hit_count, trace_seconds) = hits;
+    let rays_per_second = if trace_seconds > 0.0 {
+        rays.len() as f64 / trace_seconds
+    } else {
+        0.0
+    };
+
+    if args.json {
+        let out = json!({
+            "mesh": args.mesh.display().to_string(),
+            "triangles": mesh.triangle_count(),
+            "query": if args.occluded { "occluded" } else { "closest" },
+            "threads": pool.current_num_threads(),
+            "rays": rays.len(),
+            "hits": hit_count,
+            "load_seconds": load_seconds,
+            "build_seconds": build_seconds,
+            "trace_seconds": trace_seconds,
+            "rays_per_second": rays_per_second,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        let query = if args.occluded {
+            "occluded"
+        } else {
+            "closest hit"
+        };
+        println!(
+            "mesh      {} ({} triangles)",
+            args.mesh.display(),
+            mesh.triangle_count()
+        );
+        println!("load      {load_seconds:.3} s");
+        println!("build     {build_seconds:.3} s ({})", args.build.describe());
+        println!("trace     {trace_seconds:.3} s, {} rays ({query}), {hit_count} hit, {:.3} Mrays/s on {} threads", rays.len(), rays_per_second / 1e6, pool.current_num_threads());
+        println!("wrote     {}", args.out.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,385 @@
+//! Reading ray files: `.npz` archives with members `origins`, `directions` and optionally `tmin`,
+//! `tmax` (see `shared/RAYS.md`).
+
+use std::fmt;
+use std::fs::File;
+use std::io::{self, BufReader};
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use hbv::geometry::Ray;
+use ndarray::ArrayD;
+use ndarray_npy::{NpzReader, ReadNpyError, ReadNpzError, ReadableElement};
+
+/// An error reading an `.npz` ray, hit or occlusion file: the file, the member if one is to
+/// blame, and why.
+#[derive(Debug)]
+pub struct RayFileError {
+    path: PathBuf,
+    member: Option<String>,
+    reason: Reason,
+}
+
+#[derive(Debug)]
+enum Reason {
+    Open(io::Error),
+    NotNpz(ReadNpzError),
+    Missing {
+        alias: Option<&'static str>,
+        present: Vec<String>,
+    },
+    Shape {
+        shape: Vec<usize>,
+        expected: String,
+    },
+    Length {
+        len: usize,
+        other: String,
+        other_len: usize,
+    },
+    Dtype {
+        descr: String,
+        accepted: &'static str,
+    },
+    Invalid(String),
+}
+
+impl RayFileError {
+    /// The file that could not be read.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The member of the archive at fault, if the error is about one.
+    pub fn member(&self) -> Option<&str> {
+        self.member.as_deref()
+    }
+}
+
+impl fmt::Display for RayFileError {
+    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        let path = self.path.display();
+        let member = self.member.as_deref().unwrap_or("");
+        match &self.reason {
+            Reason::Open(e) => write!(f, "cannot open {path}: {e}"),
+            Reason::NotNpz(e) => write!(f, "{path} is not an .npz archive: {e}"),
+            Reason::Missing { alias, present } => write!(
+                f,
+                "{path}: no member `{member}`{} (members: {})",
+                alias.map_or(String::new(), |a| format!(" or `{a}`")),
+                if present.is_empty() {
+                    "none".to_owned()
+                } else {
+                    present.join(", ")
+                }
+            ),
+            Reason::Shape { shape, expected } => write!(
+                f,
+                "{path}: {member} has shape {}, expected {expected}",
+                shape_str(shape)
+            ),
+            Reason::Length {
+                len,
+                other,
+                other_len,
+            } => write!(
+                f,
+                "{path}: {member} has {len} rows but {other} has {other_len}"
+            ),
+            Reason::Dtype { descr, accepted } => write!(
+                f,
+                "{path}: {member} has unsupported dtype {descr}; accepted: {accepted}"
+            ),
+            Reason::Invalid(why) => write!(f, "{path}: {member}: {why}"),
+        }
+    }
+}
+
+impl std::error::Error for RayFileError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match &self.reason {
+            Reason::Open(e) => Some(e),
+            Reason::NotNpz(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+/// A shape as NumPy prints it: `(5,)`, `(5, 3)`, `()`.
+fn shape_str(shape: &[usize]) -> String {
+    match shape {
+        [n] => format!("({n},)"),
+        _ => {
+            let dims: Vec<String> = shape.iter().map(|d| d.to_string()).collect();
+            format!("({})", dims.join(", "))
+        }
+    }
+}
+
+/// A NumPy dtype descriptor, as the `.npy` header spells it (`'<i4'`), with its name where it is
+/// a common one: `int32 ('<i4')`.
+fn dtype_str(descr: String) -> String {
+    let code = descr
+        .trim_matches('\'')
+        .trim_start_matches(['<', '>', '|', '=']);
+    let name = match code {
+        "b1" | "?" => "bool",
+        "i1" => "int8",
+        "i2" => "int16",
+        "i4" => "int32",
+        "i8" => "int64",
+        "u1" => "uint8",
+        "u2" => "uint16",
+        "u4" => "uint32",
+        "u8" => "uint64",
+        "f2" => "float16",
+        "f4" => "float32",
+        "f8" => "float64",
+        "f16" => "float128",
+        _ => return descr,
+    };
+    format!("{name} ({descr})")
+}
+
+/// An open `.npz` archive, for reading members with errors that name the file and the member.
+pub(crate) struct Archive {
+    path: PathBuf,
+    npz: NpzReader<BufReader<File>>,
+    names: Vec<String>,
+}
+
+impl Archive {
+    /// Opens `path` and lists its members (names without their `.npy` suffix).
+    pub(crate) fn open(path: &Path) -> Result<Self, RayFileError> {
+        let error = |reason| RayFileError {
+            path: path.to_owned(),
+            member: None,
+            reason,
+        };
+        let file = File::open(path).map_err(|e| error(Reason::Open(e)))?;
+        let mut npz = NpzReader::new(BufReader::new(file)).map_err(|e| error(Reason::NotNpz(e)))?;
+        let names = npz.names().map_err(|e| error(Reason::NotNpz(e)))?;
+        Ok(Self {
+            path: path.to_owned(),
+            npz,
+            names,
+        })
+    }
+
+    fn error(&self, member: &str, reason: Reason) -> RayFileError {
+        RayFileError {
+            path: self.path.clone(),
+            member: Some(member.to_owned()),
+            reason,
+        }
+    }
+
+    /// Whether the archive has a member `name` (stored as `name` or `name.npy`).
+    pub(crate) fn has(&self, name: &str) -> bool {
+        self.names.iter().any(|n| n == name)
+    }
+
+    /// The error for a required member that is absent.
+    fn missing(&self, name: &str) -> RayFileError {
+        self.error(
+            name,
+            Reason::Missing {
+                alias: None,
+                present: self.names.clone(),
+            },
+        )
+    }
+
+    /// Reads member `name` with element type `T`; the inner error is the member's dtype where it is
+    /// not `T`'s.
+    fn try_read<T: ReadableElement>(
+        &mut self,
+        name: &str,
+    ) -> Result<Result<ArrayD<T>, String>, RayFileError> {
+        if !self.has(name) {
+            return Err(self.missing(name));
+        }
+        match self.npz.by_name::<_, ndarray::IxDyn>(name) {
+            Ok(a) => Ok(Ok(a)),
+            Err(ReadNpzError::Npy(ReadNpyError::WrongDescriptor(d))) => {
+                Ok(Err(dtype_str(d.to_string())))
+            }
+            Err(e) => Err(self.error(name, Reason::Invalid(format!("cannot read: {e}")))),
+        }
+    }
+
+    /// Reads member `name`, which must have dtype `T` (`accepted` names it for the error).
+    pub(crate) fn read<T: ReadableElement>(
+        &mut self,
+        name: &str,
+        accepted: &'static str,
+    ) -> Result<ArrayD<T>, RayFileError> {
+        self.try_read::<T>(name)?
+            .map_err(|descr| self.error(name, Reason::Dtype { descr, accepted }))
+    }
+
+    /// Reads member `name` as float32, converting float64.
+    pub(crate) fn read_float(&mut self, name: &str) -> Result<ArrayD<f32>, RayFileError> {
+        if let Ok(a) = self.try_read::<f32>(name)? {
+            return Ok(a);
+        }
+        let a: ArrayD<f64> = self.read(name, "float32, float64")?;
+        Ok(a.mapv(|x| x as f32))
+    }
+
+    /// Checks that `a` has shape `(N,)` (`cols` is `None`) or `(N, cols)` and returns its elements
+    /// in row-major order with `N`.
+    pub(crate) fn rows<T: Clone>(
+        &self,
+        name: &str,
+        a: ArrayD<T>,
+        cols: Option<usize>,
+    ) -> Result<(Vec<T>, usize), RayFileError> {
+        let ok = match (a.shape(), cols) {
+            ([_], None) => true,
+            ([_, c], Some(cols)) => *c == cols,
+            _ => false,
+        };
+        if !ok {
+            let expected = match cols {
+                None => "(N,)".to_owned(),
+                Some(c) => format!("(N, {c})"),
+            };
+            return Err(self.error(
+                name,
+                Reason::Shape {
+                    shape: a.shape().to_vec(),
+                    expected,
+                },
+            ));
+        }
+        let n = a.shape()[0];
+        Ok((into_row_major(a), n))
+    }
+
+    /// Checks that member `name` has `len` rows, like member `other` with `other_len`.
+    pub(crate) fn same_length(
+        &self,
+        name: &str,
+        len: usize,
+        other: &str,
+        other_len: usize,
+    ) -> Result<(), RayFileError> {
+        if len == other_len {
+            Ok(())
+        } else {
+            Err(self.error(
+                name,
+                Reason::Length {
+                    len,
+                    other: other.to_owned(),
+                    other_len,
+                },
+            ))
+        }
+    }
+
+    /// An error about the values of member `name`.
+    pub(crate) fn invalid(&self, name: &str, why: String) -> RayFileError {
+        self.error(name, Reason::Invalid(why))
+    }
+}
+
+/// The elements of `a` in row-major (C) order, without a copy when it already is.
+fn into_row_major<T: Clone>(a: ArrayD<T>) -> Vec<T> {
+    if !a.is_standard_layout() {
+        return a.iter().cloned().collect();
+    }
+    let len = a.len();
+    let (mut v, offset) = a.into_raw_vec_and_offset();
+    let start = offset.unwrap_or(0);
+    v.truncate(start + len);
+    v.drain(..start);
+    v
+}
+
+/// Reads a float member of shape `(N,)` or `(N, 3)`.
+fn read_rows(
+    npz: &mut Archive,
+    name: &str,
+    cols: Option<usize>,
+) -> Result<(Vec<f32>, usize), RayFileError> {
+    let a = npz.read_float(name)?;
+    npz.rows(name, a, cols)
+}
+
+/// Reads the rays of a ray file (see `shared/RAYS.md`).
+///
+/// Members: `origins` (N, 3); `directions` (N, 3), or `dirs` where `directions` is absent;
+/// optionally `tmin` and `tmax` (N,), which default to 0 and +inf. Each may be float32 or float64
+/// (converted to float32), C or Fortran order, in a compressed or uncompressed archive, with or
+/// without the `.npy` suffix on member names. NaN and infinite values are kept: such rays miss.
+///
+/// Errors name the file, the member and the reason: a missing file or member, an archive that is
+/// not a zip, a wrong shape, a row count that differs between members, or another dtype.
+pub fn read_rays(path: &Path) -> Result<Vec<Ray>, RayFileError> {
+    let mut npz = Archive::open(path)?;
+    let (origins, n) = read_rows(&mut npz, "origins", Some(3))?;
+    let dir_name = match (npz.has("directions"), npz.has("dirs")) {
+        (true, _) => "directions",
+        (false, true) => "dirs",
+        (false, false) => {
+            return Err(npz.error(
+                "directions",
+                Reason::Missing {
+                    alias: Some("dirs"),
+                    present: npz.names.clone(),
+                },
+            ))
+        }
+    };
+    let (directions, nd) = read_rows(&mut npz, dir_name, Some(3))?;
+    npz.same_length(dir_name, nd, "origins", n)?;
+    let mut bound = |name: &str| -> Result<Option<Vec<f32>>, RayFileError> {
+        if !npz.has(name) {
+            return Ok(None);
+        }
+        let (v, len) = read_rows(&mut npz, name, None)?;
+        npz.same_length(name, len, "origins", n)?;
+        Ok(Some(v))
+    };
+    let tmin = bound("tmin")?;
+    let tmax = bound("tmax")?;
+
+    let rays = origins
+        .chunks_exact(3)
+        .zip(directions.chunks_exact(3))
+        .enumerate()
+        .map(|(i, (o, d))| Ray {
+            origin: Vec3::from_slice(o),
+            direction: Vec3::from_slice(d),
+            tmin: tmin.as_ref().map_or(0.0, |t| t[i]),
+            tmax: tmax.as_ref().map_or(f32::INFINITY, |t| t[i]),
+        })
+        .collect();
+    Ok(rays)
+}
+
+/// Writes `rays` as a ray file (`origins`, `directions`, `tmin`, `tmax`, all float32),
+/// atomically: the file at `path` is replaced whole or not at all.
+pub fn write_rays(path: &Path, rays: &[Ray]) -> io::Result<()> {
+    use ndarray::{Array1, Array2};
+    let rows = |f: fn(&Ray) -> Vec3| -> Array2<f32> {
+        let flat: Vec<f32> = rays.iter().flat_map(|r| f(r).to_array()).collect();
+        Array2::from_shape_vec((rays.len(), 3), flat).expect("3 values per ray")
+    };
+    let origins = rows(|r| r.origin);
+    let directions = rows(|r| r.direction);
+    let tmin: Array1<f32> = rays.iter().map(|r| r.tmin).collect();
+    let tmax: Array1<f32> = rays.iter().map(|r| r.tmax).collect();
+    crate::atomic_write::write_atomically(path, |file| {
+        let mut npz = ndarray_npy::NpzWriter::new(file);
+        let err = io::Error::other;
+        npz.add_array("origins", &origins).map_err(err)?;
+        npz.add_array("directions", &directions).map_err(err)?;
+        npz.add_array("tmin", &tmin).map_err(err)?;
+        npz.add_array("tmax", &tmax).map_err(err)?;
+        npz.finish().map_err(err)?;
+        Ok(())
+    })
+}

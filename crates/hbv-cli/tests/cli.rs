@@ -1,0 +1,283 @@
+//! The `hbv` binary from the outside: `info` and `trace`, their outputs and their errors.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use glam::Vec3;
+use hbv::geometry::Ray;
+use hbv::mesh::procedural::torus;
+use hbv::{Accelerator, BruteForce, TriangleMesh};
+use hbv_cli::{hit_file, ray_file};
+use rand::{RngExt, SeedableRng};
+use rand_pcg::Pcg64Mcg;
+
+fn hbv(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_hbv"))
+        .args(args)
+        .output()
+        .expect("the hbv binary runs")
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Writes `mesh` as an OBJ file.
+fn write_obj(mesh: &TriangleMesh, path: &Path) {
+    let mut s = String::new();
+    for p in mesh.positions() {
+        s += &format!("v {} {} {}\n", p.x, p.y, p.z);
+    }
+    for [a, b, c] in mesh.indices() {
+        s += &format!("f {} {} {}\n", a + 1, b + 1, c + 1);
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+/// Random rays at `mesh`: from inside its box, from outside at vertices (exactly), axis-aligned,
+/// and finite segments.
+fn rays_at(mesh: &TriangleMesh, count: usize, seed: u64) -> Vec<Ray> {
+    let mut rng = Pcg64Mcg::seed_from_u64(seed);
+    let b = mesh.bounds();
+    let (lo, ext) = (b.min, b.extent());
+    let unit = |rng: &mut Pcg64Mcg| {
+        Vec3::new(
+            rng.random::<f32>(),
+            rng.random::<f32>(),
+            rng.random::<f32>(),
+        )
+    };
+    (0..count)
+        .map(|i| {
+            let inside = lo + ext * unit(&mut rng);
+            let dir = (unit(&mut rng) - 0.5).normalize_or(Vec3::X);
+            match i % 4 {
+                0 => Ray::new(inside, dir),
+                1 => {
+                    let v = mesh.positions()
+                        [mesh.indices()[rng.random_range(0..mesh.triangle_count())][0] as usize];
+                    let o = b.center() + dir * ext.length() * 2.0;
+                    Ray::new(o, v - o)
+                }
+                2 => {
+                    let mut d = Vec3::ZERO;
+                    d[i % 3] = if rng.random::<bool>() { 1.0 } else { -1.0 };
+                    Ray::new(inside, d)
+                }
+                _ => Ray::new(inside, dir)
+                    .with_interval(0.1 * ext.length() * rng.random::<f32>(), 0.3 * ext.length()),
+            }
+        })
+        .collect()
+}
+
+/// Traces `rays` with `hbv trace` and checks every answer against brute force: same hit, `t`
+/// within 1e-6 relative, the same triangle or another at equal `t`; the same occlusion.
+fn assert_trace_matches_brute_force(
+    mesh_path: &Path,
+    mesh: &TriangleMesh,
+    rays: &[Ray],
+    dir: &Path,
+) {
+    let rays_path = dir.join("rays.npz");
+    let hits_path = dir.join("hits.npz");
+    let occ_path = dir.join("occluded.npz");
+    ray_file::write_rays(&rays_path, rays).unwrap();
+    let m = mesh_path.to_str().unwrap();
+    let r = rays_path.to_str().unwrap();
+    let out = hbv(&[
+        "trace",
+        m,
+        "--rays",
+        r,
+        "--out",
+        hits_path.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let out = hbv(&[
+        "trace",
+        m,
+        "--rays",
+        r,
+        "--out",
+        occ_path.to_str().unwrap(),
+        "--occluded",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+
+    let brute = BruteForce::new(mesh);
+    let want = brute.intersect_batch(rays);
+    let got = hit_file::read_hits(&hits_path).unwrap();
+    assert_eq!(want.len(), got.len());
+    for (i, (w, g)) in want.iter().zip(&got).enumerate() {
+        match (w, g) {
+            (None, None) => {}
+            (Some(w), Some(g)) => {
+                assert!(
+                    (w.t - g.t).abs() <= 1e-6 * w.t.abs(),
+                    "ray {i}: t {} vs {}",
+                    w.t,
+                    g.t
+                );
+                assert!(
+                    w.prim == g.prim || w.t == g.t,
+                    "ray {i}: prim {} vs {}",
+                    w.prim,
+                    g.prim
+                );
+            }
+            _ => panic!("ray {i} {:?}: brute force {w:?}, hbv trace {g:?}", rays[i]),
+        }
+    }
+    let occluded = hit_file::read_occlusion(&occ_path).unwrap();
+    assert_eq!(occluded, brute.occluded_batch(rays));
+}
+
+#[test]
+fn info_on_builtin_scene_prints_the_cost() {
+    let out = hbv(&["info"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let s = stdout(&out);
+    assert!(
+        s.contains("built-in scene") && s.contains("E[X]") && s.contains("SAH cost"),
+        "{s}"
+    );
+}
+
+#[test]
+fn info_json_has_the_documented_keys() {
+    let out = hbv(&["info", "--json", "--order", "morton", "--leaf-size", "2"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in [
+        "triangles",
+        "degenerate",
+        "nodes",
+        "leaves",
+        "depth_max",
+        "build_seconds",
+        "expected_tests",
+        "sah_cost",
+    ] {
+        assert!(v.get(key).is_some(), "missing {key} in {v}");
+    }
+    let triangles = v["triangles"].as_u64().unwrap();
+    assert!(triangles > 10_000);
+    assert!(v["expected_tests"].as_f64().unwrap() > 1.0);
+    assert!(v["leaves"].as_u64().unwrap() >= triangles / 2);
+}
+
+#[test]
+fn info_on_missing_mesh_is_one_clear_line() {
+    let out = hbv(&["info", "no/such/mesh.ply"]);
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert_eq!(e.trim().lines().count(), 1, "{e}");
+    assert!(
+        e.contains("no/such/mesh.ply") && e.contains("cannot read"),
+        "{e}"
+    );
+}
+
+#[test]
+fn trace_matches_brute_force_on_a_generated_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = torus(Vec3::new(0.5, -1.0, 2.0), 2.0, 0.7, 40, 20);
+    let path = dir.path().join("torus.obj");
+    write_obj(&mesh, &path);
+    let loaded = TriangleMesh::load(&path).unwrap();
+    assert_trace_matches_brute_force(&path, &loaded, &rays_at(&loaded, 4000, 1), dir.path());
+}
+
+#[test]
+fn trace_json_reports_timings_and_threads_do_not_change_answers() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = torus(Vec3::ZERO, 2.0, 0.7, 24, 12);
+    let path = dir.path().join("torus.obj");
+    write_obj(&mesh, &path);
+    let rays_path = dir.path().join("rays.npz");
+    ray_file::write_rays(&rays_path, &rays_at(&mesh, 1000, 2)).unwrap();
+    let mut answers = Vec::new();
+    for threads in ["1", "2"] {
+        let out_path = dir.path().join(format!("hits{threads}.npz"));
+        let out = hbv(&[
+            "trace",
+            path.to_str().unwrap(),
+            "--rays",
+            rays_path.to_str().unwrap(),
+            "--out",
+            out_path.to_str().unwrap(),
+            "--threads",
+            threads,
+            "--json",
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        for key in ["build_seconds", "trace_seconds", "rays", "rays_per_second"] {
+            assert!(v.get(key).is_some(), "missing {key} in {v}");
+        }
+        assert_eq!(v["rays"], 1000);
+        answers.push(hit_file::read_hits(&out_path).unwrap());
+    }
+    assert_eq!(answers[0], answers[1]);
+}
+
+#[test]
+fn trace_with_bad_ray_file_fails_and_leaves_output_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = torus(Vec3::ZERO, 2.0, 0.7, 8, 4);
+    let path = dir.path().join("torus.obj");
+    write_obj(&mesh, &path);
+    let rays_path = dir.path().join("rays.npz");
+    std::fs::write(&rays_path, b"not a zip file").unwrap();
+    let out_path = dir.path().join("hits.npz");
+    std::fs::write(&out_path, b"precious").unwrap();
+    let out = hbv(&[
+        "trace",
+        path.to_str().unwrap(),
+        "--rays",
+        rays_path.to_str().unwrap(),
+        "--out",
+        out_path.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert!(e.contains("rays.npz") && e.contains("npz"), "{e}");
+    assert_eq!(std::fs::read(&out_path).unwrap(), b"precious");
+    let leftovers: Vec<PathBuf> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(leftovers.len(), 3, "{leftovers:?}");
+}
+
+/// `hbv trace` on every mesh of `../shared/scenes`, ray by ray against brute force.
+#[test]
+fn trace_matches_brute_force_on_shared_scenes() {
+    let scenes = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/scenes");
+    if !scenes.is_dir() {
+        eprintln!("skipped: {} is absent", scenes.display());
+        return;
+    }
+    for (name, rays) in [
+        ("cornell_box", 4000),
+        ("spot", 3000),
+        ("teapot", 3000),
+        ("bunny", 2000),
+        ("igea", 800),
+        ("dragon", 400),
+    ] {
+        let path = scenes.join(format!("{name}.ply"));
+        if !path.exists() {
+            eprintln!("skipped {name}: absent");
+            continue;
+        }
+        let mesh = TriangleMesh::load(&path).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        assert_trace_matches_brute_force(&path, &mesh, &rays_at(&mesh, rays, 7), dir.path());
+    }
+}
