@@ -6,6 +6,23 @@
 //! - [`bvh`]: the build-time tree, its builders, its cost E\[X\] and the layouts that trace it.
 //! - [`query`]: the [`Accelerator`] trait every structure answers, with batch queries.
 //! - [`BruteForce`]: the reference every accelerator is tested against.
+//!
+//! ```
+//! use hbv::bvh::build::{InsertionBuilder, InsertionConfig};
+//! use hbv::bvh::{expected_tests, layout::RecursiveLayout};
+//! use hbv::geometry::Ray;
+//! use hbv::mesh::procedural::icosphere;
+//! use hbv::Accelerator;
+//! use hbv::glam::Vec3;
+//!
+//! let mesh = icosphere(Vec3::ZERO, 1.0, 3);
+//! let tree = InsertionBuilder::new(InsertionConfig::default()).build(&mesh);
+//! assert!(expected_tests(&tree) > 1.0);
+//! let bvh = RecursiveLayout::new(&tree, &mesh);
+//! let hit = bvh.intersect(&Ray::new(Vec3::new(0.0, 0.0, -5.0), Vec3::Z)).unwrap();
+//! assert!((hit.t - 4.0).abs() < 0.05);
+//! assert!(bvh.occluded(&Ray::new(Vec3::ZERO, Vec3::X)));
+//! ```
 
 pub mod geometry;
 pub mod mesh;
@@ -20,3 +37,6 @@ mod brute_force;
 pub mod bvh;
 
 pub use brute_force::BruteForce;
+
+/// The vector types of the API (`Vec3`), re-exported so that users need not match its version.
+pub use glam;

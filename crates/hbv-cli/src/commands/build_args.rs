@@ -59,11 +59,20 @@ impl BuildArgs {
 
     /// Builds the tree and returns it with the build time in seconds.
     pub fn build(&self, mesh: &TriangleMesh) -> (BuildTree, f64) {
+        let (tree, seconds, _) = self.build_with_report(mesh);
+        (tree, seconds)
+    }
+
+    /// [`BuildArgs::build`], also returning the insertion search's mean nodes evaluated per
+    /// triangle.
+    pub fn build_with_report(&self, mesh: &TriangleMesh) -> (BuildTree, f64, f64) {
         let start = Instant::now();
-        let tree = match self.builder {
-            BuilderName::Insertion => InsertionBuilder::new(self.insertion_config()).build(mesh),
+        let (tree, evaluated) = match self.builder {
+            BuilderName::Insertion => {
+                InsertionBuilder::new(self.insertion_config()).build_with_report(mesh)
+            }
         };
-        (tree, start.elapsed().as_secs_f64())
+        (tree, start.elapsed().as_secs_f64(), evaluated)
     }
 
     /// A one-line description of the builder and its options.

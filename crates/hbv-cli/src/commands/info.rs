@@ -21,7 +21,7 @@ pub struct InfoArgs {
 
 pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     let (mesh, name, load_seconds) = load_mesh(args.mesh.as_deref())?;
-    let (tree, build_seconds) = args.build.build(&mesh);
+    let (tree, build_seconds, evaluated) = args.build.build_with_report(&mesh);
     let shape = tree.shape();
     let weights = SahWeights::default();
     let e = expected_tests(&tree);
@@ -44,6 +44,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
             "builder_options": args.build.describe(),
             "load_seconds": load_seconds,
             "build_seconds": build_seconds,
+            "search_nodes_per_insertion": evaluated,
             "nodes": shape.nodes,
             "leaves": shape.leaves,
             "depth_max": shape.depth_max,
@@ -77,7 +78,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     );
     println!("builder     {}", args.build.describe());
     println!("load        {load_seconds:.3} s");
-    println!("build       {build_seconds:.3} s");
+    println!("build       {build_seconds:.3} s ({evaluated:.1} nodes evaluated per insertion)");
     println!(
         "nodes       {} ({} leaves, {} internal)",
         shape.nodes,

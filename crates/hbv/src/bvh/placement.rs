@@ -80,6 +80,9 @@ pub struct PlacedItem {
 #[derive(Default)]
 pub struct PlacementSearch {
     queue: BinaryHeap<Pending>,
+    /// Candidate nodes whose cost was evaluated, over all searches: the work of the search,
+    /// reported to show that it grows like log n per insertion.
+    evaluated: u64,
 }
 
 /// A node still to descend into, and the cost inherited by its children.
@@ -110,6 +113,11 @@ impl Ord for Pending {
 impl PlacementSearch {
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// Nodes evaluated by all searches so far.
+    pub fn evaluated(&self) -> u64 {
+        self.evaluated
     }
 
     /// The placement of `item` that increases `Σ a_n SA(n)` least, and that increase.
@@ -147,6 +155,7 @@ impl PlacementSearch {
                 break;
             }
             let n = tree.node(node);
+            self.evaluated += 1 + n.children().len() as u64;
             let grown_area = n.bounds.union(x).surface_area();
             match &n.content {
                 NodeContent::Leaf(_) => {

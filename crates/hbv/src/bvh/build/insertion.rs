@@ -41,12 +41,19 @@ impl InsertionBuilder {
     }
 
     pub fn build(&self, mesh: &TriangleMesh) -> BuildTree {
+        self.build_with_report(mesh).0
+    }
+
+    /// [`InsertionBuilder::build`], also returning the mean number of nodes the placement search
+    /// evaluated per insertion (the algorithmic work, which grows like log n).
+    pub fn build_with_report(&self, mesh: &TriangleMesh) -> (BuildTree, f64) {
         let bounds = primitive_bounds(mesh);
         let mut order: Vec<u32> = (0..bounds.len() as u32)
             .filter(|&p| !bounds[p as usize].is_empty())
             .collect();
         self.config.order.arrange(&mut order, &bounds);
 
+        let inserted = order.len();
         let max_leaf_size = self.config.max_leaf_size.max(1);
         let mut tree = BuildTree::with_capacity(2 * order.len());
         let mut search = PlacementSearch::new();
@@ -60,7 +67,7 @@ impl InsertionBuilder {
             let (placement, _) = search.find(&tree, &item, max_leaf_size);
             tree.attach_prim(placement, p, b);
         }
-        tree
+        (tree, search.evaluated() as f64 / inserted.max(1) as f64)
     }
 }
 

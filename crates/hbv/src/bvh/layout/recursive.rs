@@ -4,7 +4,7 @@ use crate::bvh::tree::{BuildTree, NodeContent, NodeId};
 use crate::geometry::{Aabb, PreparedRay, Ray, Triangle};
 use crate::mesh::TriangleMesh;
 use crate::query::{Hit, TraversalKernel};
-use crate::stats::Counter;
+use crate::stats::{Counter, TraversalStats};
 
 /// A node of [`RecursiveLayout`]: its box, and a range of children (in `nodes`) or of
 /// triangles (in `triangles`).
@@ -85,6 +85,17 @@ impl RecursiveLayout {
         self.nodes.len() * std::mem::size_of::<PackedNode>()
             + self.triangles.len() * std::mem::size_of::<Triangle>()
             + self.prim_ids.len() * 4
+    }
+
+    /// Counts every test a traversal makes along `ray` without early exit: every box the ray
+    /// meets within `[tmin, tmax]` is opened, every triangle in a reached leaf is tested, and
+    /// nothing shrinks the interval. For an infinite line through the root, the mean of
+    /// `tests() - 1` (the root's own box) over isotropic lines is the tree cost E\[X\].
+    pub fn count_tests_without_early_exit(&self, ray: &Ray, stats: &mut TraversalStats) {
+        stats.rays += 1;
+        if ray.is_valid() {
+            self.traverse(&mut PreparedRay::new(ray), stats, |_, _, _| false);
+        }
     }
 
     /// Depth-first visit of the nodes whose boxes the ray hits. `visit_leaf` tests a leaf's
