@@ -2,7 +2,7 @@
 
 use crate::geometry::{PreparedRay, Ray, Triangle};
 use crate::mesh::TriangleMesh;
-use crate::query::{Hit, TraversalKernel};
+use crate::query::{record_closer_hit, Hit, TraversalKernel};
 use crate::stats::Counter;
 
 /// Tests every non-degenerate triangle, in face order. O(n) per ray: the reference that every
@@ -30,20 +30,9 @@ impl TraversalKernel for BruteForce {
         let mut prepared = PreparedRay::new(ray);
         let mut best: Option<Hit> = None;
         counter.triangles_tested(self.triangles.len() as u32);
-        for &(prim, tri) in &self.triangles {
-            if let Some(h) = tri.intersect(&prepared) {
-                let hit = Hit {
-                    t: h.t,
-                    prim,
-                    u: h.u,
-                    v: h.v,
-                };
-                // Face order and a strict `<` give the smallest id among equal `t`.
-                if hit.is_closer_than(&best) {
-                    best = Some(hit);
-                    prepared.tmax = h.t;
-                }
-            }
+        // Face order and a strict `<` give the smallest id among equal `t`.
+        for (prim, tri) in &self.triangles {
+            record_closer_hit(tri, *prim, &mut prepared, &mut best);
         }
         best
     }

@@ -2,7 +2,7 @@
 
 use rayon::prelude::*;
 
-use crate::geometry::Ray;
+use crate::geometry::{PreparedRay, Ray, Triangle};
 use crate::stats::{Counter, NoCount, TraversalStats};
 
 /// The closest intersection of a ray with a mesh.
@@ -26,6 +26,30 @@ impl Hit {
         match best {
             None => true,
             Some(b) => self.t < b.t || (self.t == b.t && self.prim < b.prim),
+        }
+    }
+}
+
+/// Tests `triangle` (face id `prim`) for a hit closer than `best`; if there is one, records it
+/// and shrinks `ray.tmax` to its `t`, so that everything farther is culled from then on.
+/// The step every closest-hit kernel repeats for each triangle it tests.
+#[inline]
+pub fn record_closer_hit(
+    triangle: &Triangle,
+    prim: u32,
+    ray: &mut PreparedRay,
+    best: &mut Option<Hit>,
+) {
+    if let Some(h) = triangle.intersect(ray) {
+        let hit = Hit {
+            t: h.t,
+            prim,
+            u: h.u,
+            v: h.v,
+        };
+        if hit.is_closer_than(best) {
+            *best = Some(hit);
+            ray.tmax = h.t;
         }
     }
 }

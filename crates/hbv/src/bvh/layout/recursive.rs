@@ -3,7 +3,7 @@
 use crate::bvh::tree::{BuildTree, NodeContent, NodeId};
 use crate::geometry::{Aabb, PreparedRay, Ray, Triangle};
 use crate::mesh::TriangleMesh;
-use crate::query::{Hit, TraversalKernel};
+use crate::query::{record_closer_hit, Hit, TraversalKernel};
 use crate::stats::{Counter, TraversalStats};
 
 /// A node of [`RecursiveLayout`]: its box, and a range of children (in `nodes`) or of
@@ -152,18 +152,7 @@ impl TraversalKernel for RecursiveLayout {
         let mut best: Option<Hit> = None;
         self.traverse(&mut prepared, counter, |ray, range, _| {
             for i in range {
-                if let Some(h) = self.triangles[i].intersect(ray) {
-                    let hit = Hit {
-                        t: h.t,
-                        prim: self.prim_ids[i],
-                        u: h.u,
-                        v: h.v,
-                    };
-                    if hit.is_closer_than(&best) {
-                        best = Some(hit);
-                        ray.tmax = h.t;
-                    }
-                }
+                record_closer_hit(&self.triangles[i], self.prim_ids[i], ray, &mut best);
             }
             false
         });
