@@ -58,6 +58,7 @@ impl Ray {
 #[derive(Clone, Copy, Debug)]
 pub struct PreparedRay {
     pub origin: Vec3,
+    pub direction: Vec3,
     pub inv_direction: Vec3,
     pub negative: [bool; 3],
     pub tmin: f32,
@@ -89,6 +90,7 @@ impl PreparedRay {
         let shear = Vec3::new(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
         Self {
             origin: ray.origin,
+            direction: d,
             inv_direction: d.recip(),
             negative: [
                 d.x.is_sign_negative(),

@@ -70,7 +70,13 @@ impl Triangle {
     /// ```
     ///
     /// The ray meets the triangle when U, V, W share a sign (zeros allowed: edges and vertices
-    /// count), at `t = (U Az + V Bz + W Cz) / (U + V + W)`, with `u = V / det`, `v = W / det`.
+    /// count), at `t = (U Az + V Bz + W Cz) / det` with `u = V / det`, `v = W / det`
+    /// (`det = U + V + W`), where `Az = Sz P'[kz]` for each vertex.
+    ///
+    /// One refinement: when that `t` is within rounding distance of the origin (a ray starting on
+    /// the surface), its sign is rounding noise, so `t` is recomputed exactly from the plane
+    /// equation (see `plane_distance`). Elsewhere the sheared-frame `t` is kept: it is consistent
+    /// with the edge tests (both use the same rounded shear), which matters for grazing rays.
     ///
     /// Why it is watertight: each vertex is transformed by the same operations whichever triangle
     /// it belongs to, and each edge function is `fl(fl(a b) - fl(c d))`. Rounding is monotonic, so
@@ -121,9 +127,20 @@ impl Triangle {
         let az = s.z * a[kz];
         let bz = s.z * b[kz];
         let cz = s.z * c[kz];
-        let t = (u * az + v * bz + w * cz) / det;
-        // NaN fails both comparisons.
-        if !(t >= ray.tmin && t <= ray.tmax) {
+        let mut t = (u * az + v * bz + w * cz) / det;
+        if t.abs()
+            <= Self::NEAR_ORIGIN_ULPS
+                * f32::EPSILON
+                * a.abs().max(b.abs()).max(c.abs()).max_element()
+                * s.z.abs()
+        {
+            // The hit is within rounding distance of the origin: whether it lies before or
+            // after `tmin` is decided by the exact plane distance, not by rounding.
+            t = self.plane_distance(ray);
+        }
+        // NaN fails both comparisons; an infinite `t` (overflow, or a direction parallel to the
+        // plane to f64 precision) is no hit.
+        if !(t >= ray.tmin && t <= ray.tmax && t.is_finite()) {
             return None;
         }
         Some(TriangleHit {
@@ -131,6 +148,28 @@ impl Triangle {
             u: v / det,
             v: w / det,
         })
+    }
+}
+
+impl Triangle {
+    /// How close to the origin, in ulps of the vertices' coordinates relative to it, a hit must
+    /// be for its `t` to be recomputed exactly. Woop's `t` has an error of a few ulps of those
+    /// coordinates (the shear and the depth products); 64 leaves a wide margin.
+    const NEAR_ORIGIN_ULPS: f32 = 64.0;
+
+    /// The ray parameter where the ray meets the triangle's plane, `t = Ng · (p0 − o) / Ng · d`
+    /// with `Ng = (p1 − p0) × (p2 − p0)`, evaluated in f64 and rounded once to f32.
+    ///
+    /// Used only for hits next to the ray's origin. Woop's sheared-frame `t` rounds the exact
+    /// `t = 0` of an origin on the surface to a tiny value of either sign; here the differences of
+    /// f32 coordinates are exact in f64 and the products nearly so, so the sign is right, and `t`
+    /// is exactly 0 for an origin on an axis-aligned triangle (every `Ng · (p0 − o)` term is 0).
+    #[inline]
+    fn plane_distance(&self, ray: &PreparedRay) -> f32 {
+        let p0 = self.p0.as_dvec3();
+        let normal = self.scaled_normal();
+        let direction = ray.direction.as_dvec3();
+        (normal.dot(p0 - ray.origin.as_dvec3()) / normal.dot(direction)) as f32
     }
 }
 
@@ -195,6 +234,50 @@ mod tests {
     fn parallel_ray_and_behind_origin_miss() {
         assert!(hit(&tri(), Vec3::new(-1.0, 0.2, 0.0), Vec3::X).is_none());
         assert!(hit(&tri(), Vec3::new(0.2, 0.2, 1.0), Vec3::Z).is_none());
+    }
+
+    #[test]
+    fn origin_on_the_surface_hits_at_exactly_zero() {
+        // A wall in the plane z = 0.3 (not representable exactly: the same f32 everywhere), and
+        // rays leaving points on it sideways, so that z is not the dominant axis of the ray.
+        let z = 0.3f32;
+        let wall = Triangle::new(
+            Vec3::new(-1.0, -1.0, z),
+            Vec3::new(2.0, -1.0, z),
+            Vec3::new(-1.0, 2.0, z),
+        );
+        for k in 0..100 {
+            let a = k as f32 * 0.37;
+            let o = Vec3::new(0.1 + 0.003 * k as f32, 0.2, z);
+            // Never 0 in z: a ray inside the plane is parallel to it, and misses.
+            let d = Vec3::new(a.cos(), a.sin(), 0.05 * (k as f32 - 49.5) / 50.0);
+            let h = wall
+                .intersect(&PreparedRay::new(&Ray::new(o, d)))
+                .expect("starts on the wall");
+            assert_eq!(h.t, 0.0, "ray {k}");
+        }
+    }
+
+    #[test]
+    fn near_origin_hits_have_the_exact_sign() {
+        // Origin one ulp above or below the plane z = 1: the hit is behind or ahead, exactly.
+        let wall = Triangle::new(
+            Vec3::new(-1.0, -1.0, 1.0),
+            Vec3::new(2.0, -1.0, 1.0),
+            Vec3::new(-1.0, 2.0, 1.0),
+        );
+        let d = Vec3::new(1.0, 0.3, -0.01);
+        let above = Vec3::new(0.1, 0.1, 1.0f32.next_up());
+        let below = Vec3::new(0.1, 0.1, 1.0f32.next_down());
+        assert!(
+            wall.intersect(&PreparedRay::new(&Ray::new(above, d)))
+                .unwrap()
+                .t
+                > 0.0
+        );
+        assert!(wall
+            .intersect(&PreparedRay::new(&Ray::new(below, d)))
+            .is_none());
     }
 
     #[test]
