@@ -5,7 +5,7 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use glam::Vec3;
-use hbv::bvh::build::{InsertionBuilder, InsertionConfig, InsertionOrder};
+use hbv::bvh::build::{Builder, InsertionBuilder, InsertionConfig, InsertionOrder};
 use hbv::mesh::procedural::torus;
 use std::time::Duration;
 

@@ -8,7 +8,7 @@
 //! - [`BruteForce`]: the reference every accelerator is tested against.
 //!
 //! ```
-//! use hbv::bvh::build::{InsertionBuilder, InsertionConfig};
+//! use hbv::bvh::build::{Builder, InsertionBuilder, InsertionConfig};
 //! use hbv::bvh::{expected_tests, layout::RecursiveLayout};
 //! use hbv::geometry::Ray;
 //! use hbv::mesh::procedural::icosphere;

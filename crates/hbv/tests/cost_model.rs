@@ -3,7 +3,7 @@
 //! error.
 
 use glam::Vec3;
-use hbv::bvh::build::{InsertionBuilder, InsertionConfig, InsertionOrder};
+use hbv::bvh::build::{Builder, InsertionBuilder, InsertionConfig, InsertionOrder};
 use hbv::bvh::expected_tests;
 use hbv::bvh::layout::RecursiveLayout;
 use hbv::geometry::Ray;

@@ -1,7 +1,7 @@
 //! Property tests: the BVH answers exactly what brute force answers, on adversarial inputs.
 
 use glam::Vec3;
-use hbv::bvh::build::{InsertionBuilder, InsertionConfig, InsertionOrder};
+use hbv::bvh::build::{Builder, InsertionBuilder, InsertionConfig, InsertionOrder};
 use hbv::bvh::layout::RecursiveLayout;
 use hbv::geometry::Ray;
 use hbv::mesh::procedural::torus;

@@ -2,7 +2,7 @@
 //! and face centres always hit, through the BVH and through brute force.
 
 use glam::Vec3;
-use hbv::bvh::build::{InsertionBuilder, InsertionConfig};
+use hbv::bvh::build::{Builder, InsertionBuilder, InsertionConfig};
 use hbv::bvh::layout::RecursiveLayout;
 use hbv::geometry::Ray;
 use hbv::mesh::procedural::{icosphere, torus};

@@ -1,7 +1,7 @@
 //! The seed's construction: incremental insertion (Goldsmith & Salmon 1987, "Automatic creation
 //! of object hierarchies for ray tracing", IEEE CG&A 7(5)).
 
-use super::{primitive_bounds, InsertionOrder};
+use super::{primitive_bounds, Builder, InsertionOrder};
 use crate::bvh::placement::{PlacedItem, PlacementSearch};
 use crate::bvh::tree::BuildTree;
 use crate::mesh::TriangleMesh;
@@ -35,13 +35,19 @@ pub struct InsertionBuilder {
     pub config: InsertionConfig,
 }
 
+impl Builder for InsertionBuilder {
+    fn name(&self) -> &'static str {
+        "insertion"
+    }
+
+    fn build(&self, mesh: &TriangleMesh) -> BuildTree {
+        self.build_with_report(mesh).0
+    }
+}
+
 impl InsertionBuilder {
     pub fn new(config: InsertionConfig) -> Self {
         Self { config }
-    }
-
-    pub fn build(&self, mesh: &TriangleMesh) -> BuildTree {
-        self.build_with_report(mesh).0
     }
 
     /// [`InsertionBuilder::build`], also returning the mean number of nodes the placement search

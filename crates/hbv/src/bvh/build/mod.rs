@@ -7,8 +7,19 @@ mod order;
 pub use insertion::{InsertionBuilder, InsertionConfig};
 pub use order::InsertionOrder;
 
+use crate::bvh::BuildTree;
 use crate::geometry::Aabb;
 use crate::mesh::TriangleMesh;
+
+/// A tree construction algorithm. Every builder makes the same [`BuildTree`], so every layout,
+/// cost and query works on any of them; degenerate triangles are left out of every tree.
+pub trait Builder: Send + Sync {
+    /// The name used on the command line and in tables (`insertion`, `binned-sah`, ...).
+    fn name(&self) -> &'static str;
+
+    /// Builds a tree over the non-degenerate triangles of `mesh`.
+    fn build(&self, mesh: &TriangleMesh) -> BuildTree;
+}
 
 /// The box of every triangle of `mesh`, in face order; the empty box for a degenerate triangle,
 /// which builders leave out of the tree (it is never hit).
