@@ -4,6 +4,7 @@ pub mod build;
 pub mod cost;
 pub mod layout;
 pub mod morton;
+pub mod optimize;
 pub mod placement;
 mod tree;
 

@@ -1,8 +1,12 @@
 //! Builders: each turns a mesh into a [`BuildTree`](crate::bvh::BuildTree), knowing nothing of
 //! how the tree will be laid out or traversed.
 
+mod binned_sah;
 mod insertion;
+mod lbvh;
+mod median;
 mod order;
+mod sweep_sah;
 
 pub use insertion::{InsertionBuilder, InsertionConfig};
 pub use order::InsertionOrder;

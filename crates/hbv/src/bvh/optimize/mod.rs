@@ -1,0 +1,4 @@
+//! Optimizers: improve a built tree in place.
+
+mod collapse;
+mod reinsertion;
