@@ -2,20 +2,44 @@
 
 use glam::Vec3;
 use hbv::bvh::build::{Builder, InsertionBuilder, InsertionConfig, InsertionOrder};
-use hbv::bvh::layout::RecursiveLayout;
+use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
 use hbv::geometry::Ray;
 use hbv::mesh::procedural::torus;
 use hbv::{Accelerator, BruteForce, TriangleMesh};
 use proptest::prelude::*;
 
-/// Builds the accelerator under test with the given insertion options.
-fn bvh(mesh: &TriangleMesh, order: InsertionOrder, max_leaf_size: usize) -> RecursiveLayout {
+/// Every layout of the tree built with the given insertion options, by name.
+fn layouts(
+    mesh: &TriangleMesh,
+    order: InsertionOrder,
+    max_leaf_size: usize,
+) -> Vec<(&'static str, Box<dyn Accelerator>)> {
     let tree = InsertionBuilder::new(InsertionConfig {
         order,
         max_leaf_size,
     })
     .build(mesh);
-    RecursiveLayout::new(&tree, mesh)
+    vec![
+        ("recursive", Box::new(RecursiveLayout::new(&tree, mesh))),
+        ("skip", Box::new(SkipLayout::new(&tree, mesh))),
+        ("ordered", Box::new(OrderedLayout::new(&tree, mesh))),
+        ("wide4", Box::new(Wide4Layout::new(&tree, mesh))),
+        ("wide8", Box::new(Wide8Layout::new(&tree, mesh))),
+    ]
+}
+
+/// [`assert_agrees`] for every layout.
+fn assert_all_layouts_agree(
+    mesh: &TriangleMesh,
+    order: InsertionOrder,
+    max_leaf_size: usize,
+    rays: &[Ray],
+) -> Result<(), TestCaseError> {
+    for (name, accel) in layouts(mesh, order, max_leaf_size) {
+        assert_agrees(mesh, accel.as_ref(), rays)
+            .map_err(|e| TestCaseError::fail(format!("{name}: {e}")))?;
+    }
+    Ok(())
 }
 
 /// Asserts that `accel` and brute force agree on every ray: closest hits identical (same `t`,
@@ -187,12 +211,12 @@ proptest! {
 
     #[test]
     fn soup_closest_and_any_hit_equal_brute_force((mesh, rays) in mesh_and_rays(soup()), order in order(), leaf in 1usize..5) {
-        assert_agrees(&mesh, &bvh(&mesh, order, leaf), &rays)?;
+        assert_all_layouts_agree(&mesh, order, leaf, &rays)?;
     }
 
     #[test]
     fn closed_mesh_closest_and_any_hit_equal_brute_force((mesh, rays) in mesh_and_rays(closed_mesh()), order in order(), leaf in 1usize..5) {
-        assert_agrees(&mesh, &bvh(&mesh, order, leaf), &rays)?;
+        assert_all_layouts_agree(&mesh, order, leaf, &rays)?;
     }
 
     #[test]
@@ -206,7 +230,7 @@ proptest! {
 #[test]
 fn hits_at_exactly_tmin_and_tmax_count() {
     let mesh = torus(Vec3::ZERO, 2.0, 0.5, 16, 8);
-    let accel = bvh(&mesh, InsertionOrder::default(), 1);
+    let all = layouts(&mesh, InsertionOrder::default(), 1);
     let reference = BruteForce::new(&mesh);
     let mut checked = 0;
     for k in 0..200 {
@@ -220,8 +244,10 @@ fn hits_at_exactly_tmin_and_tmax_count() {
             ray.with_interval(0.0, h.t),
             ray.with_interval(h.t, f32::INFINITY),
         ] {
-            assert_eq!(accel.intersect(&r), Some(h), "{r:?}");
-            assert!(accel.occluded(&r));
+            for (name, accel) in &all {
+                assert_eq!(accel.intersect(&r), Some(h), "{name} {r:?}");
+                assert!(accel.occluded(&r), "{name} {r:?}");
+            }
         }
         checked += 1;
     }
@@ -238,8 +264,9 @@ fn empty_and_all_degenerate_meshes_never_hit() {
     )
     .unwrap();
     for mesh in [empty, flat] {
-        let accel = bvh(&mesh, InsertionOrder::default(), 1);
-        assert_eq!(accel.intersect(&ray), None);
-        assert!(!accel.occluded(&ray));
+        for (name, accel) in layouts(&mesh, InsertionOrder::default(), 1) {
+            assert_eq!(accel.intersect(&ray), None, "{name}");
+            assert!(!accel.occluded(&ray), "{name}");
+        }
     }
 }

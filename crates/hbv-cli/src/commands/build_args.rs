@@ -6,9 +6,10 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::{Args, ValueEnum};
 use hbv::bvh::build::{InsertionBuilder, InsertionConfig, InsertionOrder};
+use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
 use hbv::bvh::BuildTree;
 use hbv::mesh::procedural::default_scene;
-use hbv::TriangleMesh;
+use hbv::{Accelerator, TriangleMesh};
 
 /// Detail of the built-in scene (132,480 triangles).
 pub const DEFAULT_SCENE_DETAIL: u32 = 4;
@@ -17,6 +18,33 @@ pub const DEFAULT_SCENE_DETAIL: u32 = 4;
 pub enum BuilderName {
     /// Goldsmith–Salmon incremental insertion (the seed's construction).
     Insertion,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum LayoutName {
+    /// The n-ary tree as built, depth-first traversal.
+    Recursive,
+    /// Depth-first array with skip pointers, stackless (the seed's).
+    Skip,
+    /// Binary tree, nearer child first.
+    Ordered,
+    /// 4-wide nodes, SIMD box and triangle tests.
+    Wide4,
+    /// 8-wide nodes, SIMD box and triangle tests.
+    Wide8,
+}
+
+impl LayoutName {
+    /// Lays `tree` out for tracing.
+    pub fn lay_out(self, tree: &BuildTree, mesh: &TriangleMesh) -> Box<dyn Accelerator> {
+        match self {
+            LayoutName::Recursive => Box::new(RecursiveLayout::new(tree, mesh)),
+            LayoutName::Skip => Box::new(SkipLayout::new(tree, mesh)),
+            LayoutName::Ordered => Box::new(OrderedLayout::new(tree, mesh)),
+            LayoutName::Wide4 => Box::new(Wide4Layout::new(tree, mesh)),
+            LayoutName::Wide8 => Box::new(Wide8Layout::new(tree, mesh)),
+        }
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]

@@ -5,12 +5,10 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::Args;
-use hbv::bvh::layout::RecursiveLayout;
-use hbv::Accelerator;
 use hbv_cli::{hit_file, ray_file};
 use serde_json::json;
 
-use super::build_args::{load_mesh, thread_pool, BuildArgs};
+use super::build_args::{load_mesh, thread_pool, BuildArgs, LayoutName};
 
 #[derive(Args)]
 pub struct TraceArgs {
@@ -30,6 +28,9 @@ pub struct TraceArgs {
     pub threads: usize,
     #[command(flatten)]
     pub build: BuildArgs,
+    /// How the tree is laid out for traversal.
+    #[arg(long, value_enum, default_value_t = LayoutName::Ordered)]
+    pub layout: LayoutName,
     /// Print one JSON object of timings instead of text.
     #[arg(long)]
     pub json: bool,
@@ -40,7 +41,7 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     let (mesh, _, load_seconds) = load_mesh(Some(&args.mesh))?;
     let rays = ray_file::read_rays(&args.rays).context("cannot read rays")?;
     let (tree, build_seconds) = pool.install(|| args.build.build(&mesh));
-    let accel = RecursiveLayout::new(&tree, &mesh);
+    let accel = args.layout.lay_out(&tree, &mesh);
 
     let start = Instant::now();
     let hits = if args.occluded {

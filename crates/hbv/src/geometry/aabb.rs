@@ -113,20 +113,28 @@ impl Aabb {
     }
 
     /// Entry and exit distances of the ray's line through the three slabs, unclipped.
+    ///
+    /// Written as a running maximum (minimum) from `-inf` (`+inf`) with the new distance as the
+    /// first operand of `max` (`min`): `f32::max` drops a NaN operand, and so does the SIMD
+    /// `maxps` in that operand order, so the wide layouts' kernels compute the same values.
     #[inline]
     fn slab_distances(&self, ray: &PreparedRay) -> (f32, f32) {
         let o = ray.origin;
         let inv = ray.inv_direction;
         let (lo, hi) = (self.min, self.max);
-        // Near plane of each axis: `min` when the direction is positive, `max` when negative.
-        let near_x = (if ray.negative[0] { hi.x } else { lo.x } - o.x) * inv.x;
-        let far_x = (if ray.negative[0] { lo.x } else { hi.x } - o.x) * inv.x;
-        let near_y = (if ray.negative[1] { hi.y } else { lo.y } - o.y) * inv.y;
-        let far_y = (if ray.negative[1] { lo.y } else { hi.y } - o.y) * inv.y;
-        let near_z = (if ray.negative[2] { hi.z } else { lo.z } - o.z) * inv.z;
-        let far_z = (if ray.negative[2] { lo.z } else { hi.z } - o.z) * inv.z;
-        // `f32::max`/`min` return the other operand when one is NaN (see above).
-        (near_x.max(near_y).max(near_z), far_x.min(far_y).min(far_z))
+        let mut near = f32::NEG_INFINITY;
+        let mut far = f32::INFINITY;
+        for axis in 0..3 {
+            // Near plane of each axis: `min` when the direction is positive, `max` when negative.
+            let (near_plane, far_plane) = if ray.negative[axis] {
+                (hi[axis], lo[axis])
+            } else {
+                (lo[axis], hi[axis])
+            };
+            near = ((near_plane - o[axis]) * inv[axis]).max(near);
+            far = ((far_plane - o[axis]) * inv[axis]).min(far);
+        }
+        (near, far)
     }
 }
 

@@ -1,0 +1,79 @@
+//! Triangles copied in leaf order, each leaf's run closed by a flag: the triangle storage of the
+//! scalar layouts.
+
+use crate::bvh::tree::{BuildTree, NodeId};
+use crate::geometry::{PreparedRay, Triangle};
+use crate::mesh::TriangleMesh;
+use crate::query::{record_closer_hit, Hit};
+use crate::stats::Counter;
+
+/// Marks the last triangle of a leaf in [`LeafTriangles::ids`].
+const LAST_IN_LEAF: u32 = 1 << 31;
+
+/// The triangles of all leaves, leaf after leaf, with their face ids. A leaf is named by the
+/// index of its first triangle; its run ends at the id carrying [`LAST_IN_LEAF`], so a node
+/// needs no count field (and meshes may have up to 2^31 triangles).
+#[derive(Clone, Debug, Default)]
+pub(crate) struct LeafTriangles {
+    triangles: Vec<Triangle>,
+    ids: Vec<u32>,
+}
+
+impl LeafTriangles {
+    /// Appends the triangles of leaf `leaf` of `tree` and returns the index of the first.
+    pub fn push_leaf(&mut self, tree: &BuildTree, leaf: NodeId, mesh: &TriangleMesh) -> u32 {
+        let first = self.triangles.len() as u32;
+        let prims = tree.node(leaf).prims();
+        for (k, &p) in prims.iter().enumerate() {
+            self.triangles.push(mesh.triangle(p as usize));
+            let last = if k + 1 == prims.len() {
+                LAST_IN_LEAF
+            } else {
+                0
+            };
+            self.ids.push(p | last);
+        }
+        first
+    }
+
+    pub fn memory_bytes(&self) -> usize {
+        self.triangles.len() * std::mem::size_of::<Triangle>() + self.ids.len() * 4
+    }
+
+    /// Tests the leaf starting at `first` for a closer hit than `best`, shrinking `ray.tmax`.
+    #[inline]
+    pub fn closest_hit<C: Counter>(
+        &self,
+        first: u32,
+        ray: &mut PreparedRay,
+        best: &mut Option<Hit>,
+        counter: &mut C,
+    ) {
+        let mut i = first as usize;
+        loop {
+            let id = self.ids[i];
+            counter.triangles_tested(1);
+            record_closer_hit(&self.triangles[i], id & !LAST_IN_LEAF, ray, best);
+            if id & LAST_IN_LEAF != 0 {
+                return;
+            }
+            i += 1;
+        }
+    }
+
+    /// Whether any triangle of the leaf starting at `first` is hit.
+    #[inline]
+    pub fn any_hit<C: Counter>(&self, first: u32, ray: &PreparedRay, counter: &mut C) -> bool {
+        let mut i = first as usize;
+        loop {
+            counter.triangles_tested(1);
+            if self.triangles[i].intersect(ray).is_some() {
+                return true;
+            }
+            if self.ids[i] & LAST_IN_LEAF != 0 {
+                return false;
+            }
+            i += 1;
+        }
+    }
+}

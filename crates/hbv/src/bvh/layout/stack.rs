@@ -1,0 +1,59 @@
+//! The traversal stack: a fixed array on the machine stack, spilling to the heap only for trees
+//! deeper than any sane builder makes.
+
+/// A LIFO of `T` with `INLINE` entries stored inline; pushes beyond that go to a `Vec`.
+pub(crate) struct TraversalStack<T: Copy + Default, const INLINE: usize> {
+    inline: [T; INLINE],
+    len: usize,
+    spill: Vec<T>,
+}
+
+impl<T: Copy + Default, const INLINE: usize> TraversalStack<T, INLINE> {
+    #[inline]
+    pub fn new() -> Self {
+        Self {
+            inline: [T::default(); INLINE],
+            len: 0,
+            spill: Vec::new(),
+        }
+    }
+
+    #[inline]
+    pub fn push(&mut self, value: T) {
+        if self.len < INLINE {
+            self.inline[self.len] = value;
+            self.len += 1;
+        } else {
+            self.spill.push(value);
+        }
+    }
+
+    #[inline]
+    pub fn pop(&mut self) -> Option<T> {
+        if let Some(v) = self.spill.pop() {
+            return Some(v);
+        }
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        Some(self.inline[self.len])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn spills_and_keeps_lifo_order() {
+        let mut s: TraversalStack<u32, 4> = TraversalStack::new();
+        for i in 0..10 {
+            s.push(i);
+        }
+        for i in (0..10).rev() {
+            assert_eq!(s.pop(), Some(i));
+        }
+        assert_eq!(s.pop(), None);
+    }
+}

@@ -1,0 +1,347 @@
+//! Wide nodes: 4 or 8 children per node, their boxes tested together with SIMD.
+
+use super::binarize::binarize;
+use super::stack::TraversalStack;
+use super::wide_kernels::{BoxRay, LaneBoxes, TrianglePacket};
+use crate::bvh::tree::{BuildTree, NodeContent, NodeId};
+use crate::geometry::{Aabb, PreparedRay, Ray};
+use crate::mesh::TriangleMesh;
+use crate::query::{record_closer_hit, Hit, TraversalKernel};
+use crate::stats::Counter;
+
+/// Bit 31 of a child reference: the child is a leaf.
+const LEAF: u32 = 1 << 31;
+/// A leaf reference: bits 27..31 hold the number of triangle packets minus one (1 to 16
+/// packets), bits 0..27 the first packet.
+const LEAF_COUNT_SHIFT: u32 = 27;
+const LEAF_FIRST_MASK: u32 = (1 << LEAF_COUNT_SHIFT) - 1;
+/// Most triangles in one leaf: 16 packets of 4.
+const MAX_LEAF_TRIANGLES: usize = 64;
+
+/// A node with up to `W` children: their boxes in structure-of-arrays form (one SIMD load per
+/// axis and side), and a reference to each (a node, or a leaf's triangle packets).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct WideNode<const W: usize> {
+    boxes: LaneBoxes<W>,
+    children: [u32; W],
+}
+
+/// A BVH of `W`-wide nodes (W = 4 or 8) collapsed from the binary tree, with SIMD box tests,
+/// nearest-first traversal, and leaf triangles in packets of four tested together.
+///
+/// **Collapse** (after Wald et al. 2008, "Getting rid of packets"; Dammertz et al. 2008): each
+/// wide node starts from a binary node's two children and repeatedly opens the child with the
+/// largest surface area — the one most rays reach — until it has `W` children or only leaves.
+/// A subtree of at most four triangles becomes one leaf: testing four triangles in one packet
+/// costs what testing one does.
+///
+/// **Traversal**: the `W` child boxes are tested at once (SSE for 4, AVX for 8 where the CPU has
+/// it, chosen at run time; a scalar twin elsewhere, with identical answers); hit children are
+/// visited nearest first, the others pushed with their entry distance and dropped on pop when
+/// they lie beyond the closest hit so far.
+#[derive(Clone, Debug)]
+pub struct WideLayout<const W: usize> {
+    nodes: Vec<WideNode<W>>,
+    packets: Vec<TrianglePacket>,
+    /// The root reference (a node, or a leaf for trees of one leaf), with the root's box.
+    root: Option<(u32, Aabb)>,
+    use_avx: bool,
+}
+
+/// 4-wide nodes (SSE).
+pub type Wide4Layout = WideLayout<4>;
+/// 8-wide nodes (AVX where available).
+pub type Wide8Layout = WideLayout<8>;
+
+impl<const W: usize> WideLayout<W> {
+    const VALID_WIDTH: () = assert!(W == 4 || W == 8, "WideLayout supports widths 4 and 8");
+
+    /// Lays out `tree` (binarized, then collapsed to `W`-wide nodes).
+    pub fn new(tree: &BuildTree, mesh: &TriangleMesh) -> Self {
+        #[allow(clippy::let_unit_value)]
+        let () = Self::VALID_WIDTH;
+        let binary = binarize(tree);
+        let counts = subtree_triangle_counts(&binary);
+        let mut layout = Self {
+            nodes: Vec::new(),
+            packets: Vec::new(),
+            root: None,
+            use_avx: detect_avx(),
+        };
+        if let Some(root) = binary.root() {
+            let reference = layout.emit(&binary, &counts, mesh, root);
+            layout.root = Some((reference, binary.node(root).bounds));
+        }
+        layout
+    }
+
+    /// Bytes of node and triangle data.
+    pub fn memory_bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<WideNode<W>>()
+            + self.packets.len() * std::mem::size_of::<TrianglePacket>()
+    }
+
+    /// Emits the subtree at binary node `id` and returns its reference. Iterative over a work
+    /// list, so that no depth overflows the call stack.
+    fn emit(&mut self, binary: &BuildTree, counts: &[u32], mesh: &TriangleMesh, id: NodeId) -> u32 {
+        if counts[id as usize] as usize <= 4 || binary.node(id).is_leaf() {
+            return self.emit_leaf(binary, mesh, id);
+        }
+        let root = self.nodes.len() as u32;
+        self.nodes.push(WideNode::empty());
+        let mut work: Vec<(NodeId, u32)> = vec![(id, root)];
+        while let Some((id, slot)) = work.pop() {
+            let children = collapse::<W>(binary, counts, id);
+            let mut node = WideNode::empty();
+            for (lane, &c) in children.iter().enumerate() {
+                let child = binary.node(c);
+                for axis in 0..3 {
+                    node.boxes[0][axis][lane] = child.bounds.min[axis];
+                    node.boxes[1][axis][lane] = child.bounds.max[axis];
+                }
+                node.children[lane] = if child.is_leaf() || counts[c as usize] as usize <= 4 {
+                    self.emit_leaf(binary, mesh, c)
+                } else {
+                    let index = self.nodes.len() as u32;
+                    self.nodes.push(WideNode::empty());
+                    work.push((c, index));
+                    index
+                };
+            }
+            self.nodes[slot as usize] = node;
+        }
+        root
+    }
+
+    /// Packs the triangles below binary node `id` into packets and returns the leaf reference.
+    fn emit_leaf(&mut self, binary: &BuildTree, mesh: &TriangleMesh, id: NodeId) -> u32 {
+        let mut prims = Vec::new();
+        let mut pending = vec![id];
+        while let Some(n) = pending.pop() {
+            let node = binary.node(n);
+            prims.extend_from_slice(node.prims());
+            pending.extend(node.children().iter().rev());
+        }
+        assert!(
+            prims.len() <= MAX_LEAF_TRIANGLES,
+            "a leaf of {} triangles is more than the wide layout's {MAX_LEAF_TRIANGLES}",
+            prims.len()
+        );
+        let first = self.packets.len() as u32;
+        assert!(
+            first <= LEAF_FIRST_MASK,
+            "too many triangle packets for the wide layout"
+        );
+        let triangles: Vec<(u32, crate::geometry::Triangle)> = prims
+            .iter()
+            .map(|&p| (p, mesh.triangle(p as usize)))
+            .collect();
+        for chunk in triangles.chunks(4) {
+            self.packets.push(TrianglePacket::new(chunk));
+        }
+        let count = triangles.len().div_ceil(4) as u32;
+        LEAF | ((count - 1) << LEAF_COUNT_SHIFT) | first
+    }
+
+    /// Tests the boxes of node `index`: the hit mask and each lane's entry distance.
+    #[inline]
+    fn test_boxes(&self, index: u32, ray: &BoxRay, tmin: f32, tmax: f32) -> (u32, [f32; W]) {
+        let boxes = &self.nodes[index as usize].boxes;
+        #[cfg(target_arch = "x86_64")]
+        {
+            let mut mask = 0;
+            let mut entry = [0.0f32; W];
+            if W == 8 && self.use_avx {
+                // SAFETY: `use_avx` is true only when the CPU reported AVX; W == 8 makes the cast exact.
+                let boxes8 = unsafe { &*(boxes as *const LaneBoxes<W> as *const LaneBoxes<8>) };
+                let (m, e) = unsafe { super::wide_kernels::boxes_avx(boxes8, ray, tmin, tmax) };
+                entry[..8].copy_from_slice(&e);
+                return (m, entry);
+            }
+            for offset in (0..W).step_by(4) {
+                let (m, e) = super::wide_kernels::boxes_sse(boxes, offset, ray, tmin, tmax);
+                mask |= m << offset;
+                entry[offset..offset + 4].copy_from_slice(&e);
+            }
+            (mask, entry)
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let _ = self.use_avx;
+            super::wide_kernels::boxes_scalar(boxes, ray, tmin, tmax)
+        }
+    }
+
+    /// Nearest-first traversal; `visit_leaf(first_packet, packet_count, ray)` returns `true` to stop.
+    #[inline]
+    fn traverse<C: Counter>(
+        &self,
+        ray: &mut PreparedRay,
+        counter: &mut C,
+        mut visit_leaf: impl FnMut(usize, usize, &mut PreparedRay, &mut C) -> bool,
+    ) {
+        let Some((root, root_bounds)) = self.root else {
+            return;
+        };
+        counter.boxes_tested(1);
+        if !root_bounds.hit_by(ray) {
+            return;
+        }
+        let box_ray = BoxRay::new(ray);
+        let mut stack: TraversalStack<(u32, f32), 64> = TraversalStack::new();
+        let mut current = root;
+        loop {
+            counter.node_visited();
+            if current & LEAF != 0 {
+                let first = (current & LEAF_FIRST_MASK) as usize;
+                let count = ((current & !LEAF) >> LEAF_COUNT_SHIFT) as usize + 1;
+                if visit_leaf(first, count, ray, counter) {
+                    return;
+                }
+            } else {
+                counter.boxes_tested(W as u32);
+                let (mut mask, entry) = self.test_boxes(current, &box_ray, ray.tmin, ray.tmax);
+                let children = &self.nodes[current as usize].children;
+                if mask != 0 {
+                    // Push the hit children farthest first, so the nearest is popped next.
+                    let hits = mask.count_ones() as usize;
+                    if hits == 1 {
+                        let lane = mask.trailing_zeros() as usize;
+                        current = children[lane];
+                        continue;
+                    }
+                    let mut order = [(0u32, 0.0f32); W];
+                    let mut n = 0;
+                    while mask != 0 {
+                        let lane = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        // Insertion sort by decreasing entry distance (at most 8 entries).
+                        let item = (children[lane], entry[lane]);
+                        let mut k = n;
+                        while k > 0 && order[k - 1].1 < item.1 {
+                            order[k] = order[k - 1];
+                            k -= 1;
+                        }
+                        order[k] = item;
+                        n += 1;
+                    }
+                    for &item in &order[..n - 1] {
+                        stack.push(item);
+                    }
+                    current = order[n - 1].0;
+                    continue;
+                }
+            }
+            current = loop {
+                match stack.pop() {
+                    Some((n, near)) if near <= ray.tmax => break n,
+                    Some(_) => continue,
+                    None => return,
+                }
+            };
+        }
+    }
+}
+
+impl<const W: usize> WideNode<W> {
+    fn empty() -> Self {
+        Self {
+            boxes: [[[f32::INFINITY; W]; 3], [[f32::NEG_INFINITY; W]; 3]],
+            children: [0; W],
+        }
+    }
+}
+
+/// The children of a wide node made from binary node `id`: start from its two children and
+/// open the internal child of largest surface area until there are `W` or none can be opened.
+/// A child whose subtree holds at most four triangles is not opened: it becomes one leaf.
+fn collapse<const W: usize>(binary: &BuildTree, counts: &[u32], id: NodeId) -> Vec<NodeId> {
+    let mut children: Vec<NodeId> = binary.node(id).children().to_vec();
+    while children.len() < W {
+        let openable = children
+            .iter()
+            .enumerate()
+            .filter(|(_, &c)| !binary.node(c).is_leaf() && counts[c as usize] > 4)
+            .max_by(|(_, &a), (_, &b)| {
+                binary
+                    .node(a)
+                    .bounds
+                    .surface_area()
+                    .total_cmp(&binary.node(b).bounds.surface_area())
+            });
+        let Some((k, _)) = openable else {
+            break;
+        };
+        let opened = children.swap_remove(k);
+        children.extend_from_slice(binary.node(opened).children());
+    }
+    children
+}
+
+/// Number of triangles below each node of `tree` (by node id).
+fn subtree_triangle_counts(tree: &BuildTree) -> Vec<u32> {
+    let mut counts = vec![0u32; tree.nodes().len()];
+    let mut order = Vec::with_capacity(tree.nodes().len());
+    tree.walk(|id, _| order.push(id));
+    for &id in order.iter().rev() {
+        let node = tree.node(id);
+        counts[id as usize] = match &node.content {
+            NodeContent::Leaf(p) => p.len() as u32,
+            NodeContent::Internal(c) => c.iter().map(|&c| counts[c as usize]).sum(),
+        };
+    }
+    counts
+}
+
+fn detect_avx() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
+}
+
+impl<const W: usize> TraversalKernel for WideLayout<W> {
+    fn closest_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
+        let mut prepared = PreparedRay::new(ray);
+        let mut best = None;
+        self.traverse(&mut prepared, counter, |first, count, ray, counter| {
+            for packet in &self.packets[first..first + count] {
+                counter.triangles_tested(4);
+                let mut candidates = packet.candidates(ray);
+                while candidates != 0 {
+                    let lane = candidates.trailing_zeros() as usize;
+                    candidates &= candidates - 1;
+                    record_closer_hit(&packet.triangle(lane), packet.ids[lane], ray, &mut best);
+                }
+            }
+            false
+        });
+        best
+    }
+
+    fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
+        let mut prepared = PreparedRay::new(ray);
+        let mut found = false;
+        self.traverse(&mut prepared, counter, |first, count, ray, counter| {
+            for packet in &self.packets[first..first + count] {
+                counter.triangles_tested(4);
+                let mut candidates = packet.candidates(ray);
+                while candidates != 0 {
+                    let lane = candidates.trailing_zeros() as usize;
+                    candidates &= candidates - 1;
+                    if packet.triangle(lane).intersect(ray).is_some() {
+                        found = true;
+                        return true;
+                    }
+                }
+            }
+            false
+        });
+        found
+    }
+}

@@ -1,0 +1,387 @@
+//! The SIMD kernels of [`WideLayout`](super::WideLayout): several boxes, and several triangles,
+//! against one ray at once. Each kernel has a scalar twin that defines its answer; the SIMD
+//! versions compute the same IEEE operations in the same order, so they return the same bits
+//! (tested below), and every layout answers exactly like the scalar reference.
+
+use crate::geometry::{PreparedRay, Triangle};
+
+/// Child boxes of a wide node, structure of arrays: `planes[side][axis][lane]`, side 0 the
+/// minimum corner and side 1 the maximum. Empty lanes hold the empty box (never hit).
+pub(crate) type LaneBoxes<const W: usize> = [[[f32; W]; 3]; 2];
+
+/// The per-ray constants of the box kernel, splat-ready.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct BoxRay {
+    origin: [f32; 3],
+    inv_direction: [f32; 3],
+    /// Which side of `LaneBoxes` is the near plane on each axis: 1 (max) for a negative direction.
+    near_side: [usize; 3],
+}
+
+impl BoxRay {
+    pub fn new(ray: &PreparedRay) -> Self {
+        Self {
+            origin: ray.origin.to_array(),
+            inv_direction: ray.inv_direction.to_array(),
+            near_side: ray.negative.map(usize::from),
+        }
+    }
+}
+
+const SLACK: f32 = PreparedRay::BOX_SLACK;
+
+/// Which of the `W` boxes the ray meets within `[tmin, tmax]` (bit `i` of the mask), and the
+/// entry distance of each: the slab test of [`crate::geometry::Aabb::intersect_interval`], lane
+/// by lane. The scalar definition of the SIMD kernels.
+#[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+#[inline]
+pub(crate) fn boxes_scalar<const W: usize>(
+    boxes: &LaneBoxes<W>,
+    ray: &BoxRay,
+    tmin: f32,
+    tmax: f32,
+) -> (u32, [f32; W]) {
+    let mut mask = 0;
+    let mut entry = [0.0; W];
+    for lane in 0..W {
+        let mut near = f32::NEG_INFINITY;
+        let mut far = f32::INFINITY;
+        for axis in 0..3 {
+            let side = ray.near_side[axis];
+            near =
+                ((boxes[side][axis][lane] - ray.origin[axis]) * ray.inv_direction[axis]).max(near);
+            far = ((boxes[1 - side][axis][lane] - ray.origin[axis]) * ray.inv_direction[axis])
+                .min(far);
+        }
+        let near = (near * if near > 0.0 { 1.0 - SLACK } else { 1.0 + SLACK }).max(tmin);
+        let far = (far * if far > 0.0 { 1.0 + SLACK } else { 1.0 - SLACK }).min(tmax);
+        entry[lane] = near;
+        mask |= u32::from(near <= far) << lane;
+    }
+    (mask, entry)
+}
+
+/// Four boxes (lanes `offset..offset + 4` of `boxes`) with SSE.
+///
+/// `maxps(a, b)` returns `b` when either is NaN, so the new distance goes first and the running
+/// value (never NaN) second: a NaN distance (an origin on a slab plane with a zero direction
+/// component) drops out, as in the scalar twin.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+pub(crate) fn boxes_sse<const W: usize>(
+    boxes: &LaneBoxes<W>,
+    offset: usize,
+    ray: &BoxRay,
+    tmin: f32,
+    tmax: f32,
+) -> (u32, [f32; 4]) {
+    use std::arch::x86_64::*;
+    assert!(offset + 4 <= W);
+    // SAFETY: SSE2 is part of the x86_64 baseline; every load reads 4 floats inside a `[f32; W]`
+    // array at `offset`, in bounds by the assertion above; `_mm_storeu_ps` writes 4 floats.
+    unsafe {
+        let mut near = _mm_set1_ps(f32::NEG_INFINITY);
+        let mut far = _mm_set1_ps(f32::INFINITY);
+        for axis in 0..3 {
+            let side = ray.near_side[axis];
+            let o = _mm_set1_ps(ray.origin[axis]);
+            let inv = _mm_set1_ps(ray.inv_direction[axis]);
+            let n = _mm_loadu_ps(boxes[side][axis].as_ptr().add(offset));
+            let f = _mm_loadu_ps(boxes[1 - side][axis].as_ptr().add(offset));
+            near = _mm_max_ps(_mm_mul_ps(_mm_sub_ps(n, o), inv), near);
+            far = _mm_min_ps(_mm_mul_ps(_mm_sub_ps(f, o), inv), far);
+        }
+        let zero = _mm_setzero_ps();
+        let shrink = _mm_set1_ps(1.0 - SLACK);
+        let grow = _mm_set1_ps(1.0 + SLACK);
+        let near_positive = _mm_cmpgt_ps(near, zero);
+        let far_positive = _mm_cmpgt_ps(far, zero);
+        let near_factor = _mm_or_ps(
+            _mm_and_ps(near_positive, shrink),
+            _mm_andnot_ps(near_positive, grow),
+        );
+        let far_factor = _mm_or_ps(
+            _mm_and_ps(far_positive, grow),
+            _mm_andnot_ps(far_positive, shrink),
+        );
+        let near = _mm_max_ps(_mm_mul_ps(near, near_factor), _mm_set1_ps(tmin));
+        let far = _mm_min_ps(_mm_mul_ps(far, far_factor), _mm_set1_ps(tmax));
+        let mask = _mm_movemask_ps(_mm_cmple_ps(near, far)) as u32;
+        let mut entry = [0.0f32; 4];
+        _mm_storeu_ps(entry.as_mut_ptr(), near);
+        (mask, entry)
+    }
+}
+
+/// Eight boxes with AVX. The caller checks that the CPU has AVX.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx")]
+pub(crate) unsafe fn boxes_avx(
+    boxes: &LaneBoxes<8>,
+    ray: &BoxRay,
+    tmin: f32,
+    tmax: f32,
+) -> (u32, [f32; 8]) {
+    use std::arch::x86_64::*;
+    // SAFETY: the caller guarantees AVX; every load reads the 8 floats of one `[f32; 8]` array
+    // and the store writes 8 floats into `entry`.
+    unsafe {
+        let mut near = _mm256_set1_ps(f32::NEG_INFINITY);
+        let mut far = _mm256_set1_ps(f32::INFINITY);
+        for axis in 0..3 {
+            let side = ray.near_side[axis];
+            let o = _mm256_set1_ps(ray.origin[axis]);
+            let inv = _mm256_set1_ps(ray.inv_direction[axis]);
+            let n = _mm256_loadu_ps(boxes[side][axis].as_ptr());
+            let f = _mm256_loadu_ps(boxes[1 - side][axis].as_ptr());
+            near = _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(n, o), inv), near);
+            far = _mm256_min_ps(_mm256_mul_ps(_mm256_sub_ps(f, o), inv), far);
+        }
+        let zero = _mm256_setzero_ps();
+        let shrink = _mm256_set1_ps(1.0 - SLACK);
+        let grow = _mm256_set1_ps(1.0 + SLACK);
+        let near_positive = _mm256_cmp_ps::<_CMP_GT_OQ>(near, zero);
+        let far_positive = _mm256_cmp_ps::<_CMP_GT_OQ>(far, zero);
+        let near_factor = _mm256_blendv_ps(grow, shrink, near_positive);
+        let far_factor = _mm256_blendv_ps(shrink, grow, far_positive);
+        let near = _mm256_max_ps(_mm256_mul_ps(near, near_factor), _mm256_set1_ps(tmin));
+        let far = _mm256_min_ps(_mm256_mul_ps(far, far_factor), _mm256_set1_ps(tmax));
+        let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
+        let mut entry = [0.0f32; 8];
+        _mm256_storeu_ps(entry.as_mut_ptr(), near);
+        (mask, entry)
+    }
+}
+
+/// Four triangles, structure of arrays: `vertices[vertex][axis][lane]`, with their face ids.
+/// A leaf whose count is not a multiple of 4 repeats its last triangle in the spare lanes.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+pub(crate) struct TrianglePacket {
+    pub vertices: [[[f32; 4]; 3]; 3],
+    pub ids: [u32; 4],
+}
+
+impl TrianglePacket {
+    /// Packs up to four triangles; spare lanes repeat the last one.
+    pub fn new(triangles: &[(u32, Triangle)]) -> Self {
+        assert!((1..=4).contains(&triangles.len()));
+        let mut packet = Self {
+            vertices: [[[0.0; 4]; 3]; 3],
+            ids: [0; 4],
+        };
+        for lane in 0..4 {
+            let (id, t) = triangles[lane.min(triangles.len() - 1)];
+            for (v, p) in [t.p0, t.p1, t.p2].iter().enumerate() {
+                for axis in 0..3 {
+                    packet.vertices[v][axis][lane] = p[axis];
+                }
+            }
+            packet.ids[lane] = id;
+        }
+        packet
+    }
+
+    pub fn triangle(&self, lane: usize) -> Triangle {
+        let v = |k: usize| {
+            glam::Vec3::new(
+                self.vertices[k][0][lane],
+                self.vertices[k][1][lane],
+                self.vertices[k][2][lane],
+            )
+        };
+        Triangle::new(v(0), v(1), v(2))
+    }
+
+    /// The lanes that may be hit (bit `i` for lane `i`): those whose edge functions share a sign
+    /// with a nonzero determinant, or have a zero edge function (which the scalar test decides
+    /// in f64). Exactly the first steps of [`Triangle::intersect`], so every lane that test
+    /// accepts is here; the caller runs it on these lanes for the exact answer.
+    #[inline]
+    pub fn candidates(&self, ray: &PreparedRay) -> u32 {
+        #[cfg(target_arch = "x86_64")]
+        {
+            self.candidates_sse(ray)
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            self.candidates_scalar(ray)
+        }
+    }
+
+    /// The scalar definition of [`TrianglePacket::candidates`].
+    #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+    pub fn candidates_scalar(&self, ray: &PreparedRay) -> u32 {
+        let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
+        let o = ray.origin;
+        let mut mask = 0;
+        for lane in 0..4 {
+            let sheared = |v: usize| {
+                let x = self.vertices[v][kx][lane] - o[kx];
+                let y = self.vertices[v][ky][lane] - o[ky];
+                let z = self.vertices[v][kz][lane] - o[kz];
+                (x - ray.shear.x * z, y - ray.shear.y * z)
+            };
+            let ((ax, ay), (bx, by), (cx, cy)) = (sheared(0), sheared(1), sheared(2));
+            let u = cx * by - cy * bx;
+            let v = ax * cy - ay * cx;
+            let w = bx * ay - by * ax;
+            let zero = u == 0.0 || v == 0.0 || w == 0.0;
+            let mixed = (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0);
+            let candidate = zero || (!mixed && u + v + w != 0.0);
+            mask |= u32::from(candidate) << lane;
+        }
+        mask
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[inline]
+    fn candidates_sse(&self, ray: &PreparedRay) -> u32 {
+        use std::arch::x86_64::*;
+        let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
+        // SAFETY: SSE2 is part of the x86_64 baseline; each load reads one `[f32; 4]` array of
+        // this 16-byte aligned packet.
+        unsafe {
+            let ox = _mm_set1_ps(ray.origin[kx]);
+            let oy = _mm_set1_ps(ray.origin[ky]);
+            let oz = _mm_set1_ps(ray.origin[kz]);
+            let sx = _mm_set1_ps(ray.shear.x);
+            let sy = _mm_set1_ps(ray.shear.y);
+            let sheared = |v: usize| {
+                let x = _mm_sub_ps(_mm_load_ps(self.vertices[v][kx].as_ptr()), ox);
+                let y = _mm_sub_ps(_mm_load_ps(self.vertices[v][ky].as_ptr()), oy);
+                let z = _mm_sub_ps(_mm_load_ps(self.vertices[v][kz].as_ptr()), oz);
+                (
+                    _mm_sub_ps(x, _mm_mul_ps(sx, z)),
+                    _mm_sub_ps(y, _mm_mul_ps(sy, z)),
+                )
+            };
+            let ((ax, ay), (bx, by), (cx, cy)) = (sheared(0), sheared(1), sheared(2));
+            let u = _mm_sub_ps(_mm_mul_ps(cx, by), _mm_mul_ps(cy, bx));
+            let v = _mm_sub_ps(_mm_mul_ps(ax, cy), _mm_mul_ps(ay, cx));
+            let w = _mm_sub_ps(_mm_mul_ps(bx, ay), _mm_mul_ps(by, ax));
+            let zero = _mm_setzero_ps();
+            let any_zero = _mm_or_ps(
+                _mm_or_ps(_mm_cmpeq_ps(u, zero), _mm_cmpeq_ps(v, zero)),
+                _mm_cmpeq_ps(w, zero),
+            );
+            let any_negative = _mm_or_ps(
+                _mm_or_ps(_mm_cmplt_ps(u, zero), _mm_cmplt_ps(v, zero)),
+                _mm_cmplt_ps(w, zero),
+            );
+            let any_positive = _mm_or_ps(
+                _mm_or_ps(_mm_cmpgt_ps(u, zero), _mm_cmpgt_ps(v, zero)),
+                _mm_cmpgt_ps(w, zero),
+            );
+            let det = _mm_add_ps(_mm_add_ps(u, v), w);
+            let same_sign = _mm_andnot_ps(
+                _mm_and_ps(any_negative, any_positive),
+                _mm_cmpneq_ps(det, zero),
+            );
+            _mm_movemask_ps(_mm_or_ps(any_zero, same_sign)) as u32
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{Aabb, Ray};
+    use glam::Vec3;
+    use proptest::prelude::*;
+
+    fn ray_strategy() -> impl Strategy<Value = Ray> {
+        let c = || prop_oneof![Just(0.0f32), Just(-0.0), Just(1.0), Just(0.5), -2.0f32..2.0];
+        (
+            (c(), c(), c()),
+            (c(), c(), c()),
+            prop_oneof![Just(0.0f32), 0.0f32..1.0],
+            prop_oneof![Just(f32::INFINITY), 0.5f32..4.0],
+        )
+            .prop_filter("valid", |((_, _, _), (x, y, z), _, _)| {
+                Vec3::new(*x, *y, *z) != Vec3::ZERO
+            })
+            .prop_map(|((ox, oy, oz), (dx, dy, dz), tmin, tmax)| {
+                Ray::new(Vec3::new(ox, oy, oz), Vec3::new(dx, dy, dz)).with_interval(tmin, tmax)
+            })
+    }
+
+    fn box_strategy() -> impl Strategy<Value = Aabb> {
+        let c = || prop_oneof![Just(0.0f32), Just(1.0), Just(0.5), -2.0f32..2.0];
+        prop_oneof![
+            1 => Just(Aabb::EMPTY),
+            6 => ((c(), c(), c()), (c(), c(), c())).prop_map(|((a, b, c), (d, e, f))| {
+                let (p, q) = (Vec3::new(a, b, c), Vec3::new(d, e, f));
+                Aabb::new(p.min(q), p.max(q))
+            }),
+        ]
+    }
+
+    fn lanes<const W: usize>(boxes: &[Aabb]) -> LaneBoxes<W> {
+        let mut l = [[[0.0; W]; 3]; 2];
+        for (lane, b) in boxes.iter().enumerate() {
+            for axis in 0..3 {
+                l[0][axis][lane] = b.min[axis];
+                l[1][axis][lane] = b.max[axis];
+            }
+        }
+        l
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+
+        #[test]
+        fn box_kernels_equal_the_scalar_slab_test(ray in ray_strategy(), boxes in prop::collection::vec(box_strategy(), 8)) {
+            let prepared = PreparedRay::new(&ray);
+            let box_ray = BoxRay::new(&prepared);
+            let l8 = lanes::<8>(&boxes);
+            let (mask, entry) = boxes_scalar(&l8, &box_ray, ray.tmin, ray.tmax);
+            for (lane, b) in boxes.iter().enumerate() {
+                prop_assert_eq!(mask >> lane & 1 == 1, b.hit_by(&prepared), "lane {}", lane);
+                if let Some((near, _)) = b.intersect_interval(&prepared) {
+                    prop_assert_eq!(entry[lane], near);
+                }
+            }
+            #[cfg(target_arch = "x86_64")]
+            {
+                for offset in [0, 4] {
+                    let (m, e) = boxes_sse(&l8, offset, &box_ray, ray.tmin, ray.tmax);
+                    prop_assert_eq!(m, mask >> offset & 0xf);
+                    for k in 0..4 {
+                        if m >> k & 1 == 1 {
+                            prop_assert_eq!(e[k], entry[offset + k]);
+                        }
+                    }
+                }
+                if std::arch::is_x86_feature_detected!("avx") {
+                    // SAFETY: AVX was just detected.
+                    let (m, e) = unsafe { boxes_avx(&l8, &box_ray, ray.tmin, ray.tmax) };
+                    prop_assert_eq!(m, mask);
+                    for k in 0..8 {
+                        if m >> k & 1 == 1 {
+                            prop_assert_eq!(e[k], entry[k]);
+                        }
+                    }
+                }
+            }
+        }
+
+        #[test]
+        fn triangle_candidates_cover_every_hit(ray in ray_strategy(), pts in prop::collection::vec((-2.0f32..2.0, -2.0f32..2.0, prop_oneof![Just(0.0f32), -2.0f32..2.0]), 12)) {
+            let tris: Vec<(u32, Triangle)> = pts.chunks(3).enumerate().map(|(i, p)| {
+                let v = |k: usize| Vec3::new(p[k].0, p[k].1, p[k].2);
+                (i as u32, Triangle::new(v(0), v(1), v(2)))
+            }).collect();
+            let packet = TrianglePacket::new(&tris);
+            let prepared = PreparedRay::new(&ray);
+            let scalar = packet.candidates_scalar(&prepared);
+            prop_assert_eq!(packet.candidates(&prepared), scalar);
+            for (lane, (_, t)) in tris.iter().enumerate() {
+                if t.intersect(&prepared).is_some() {
+                    prop_assert!(scalar >> lane & 1 == 1, "lane {} hit but not a candidate", lane);
+                }
+            }
+        }
+    }
+}
