@@ -1,18 +1,23 @@
 //! The traversal stack: a fixed array on the machine stack, spilling to the heap only for trees
 //! deeper than any sane builder makes.
 
+use std::mem::MaybeUninit;
+
 /// A LIFO of `T` with `INLINE` entries stored inline; pushes beyond that go to a `Vec`.
-pub(crate) struct TraversalStack<T: Copy + Default, const INLINE: usize> {
-    inline: [T; INLINE],
+///
+/// The inline array is left uninitialized (a traversal starts one per ray, and zeroing 64
+/// entries would cost more than most rays' pushes).
+pub(crate) struct TraversalStack<T: Copy, const INLINE: usize> {
+    inline: [MaybeUninit<T>; INLINE],
     len: usize,
     spill: Vec<T>,
 }
 
-impl<T: Copy + Default, const INLINE: usize> TraversalStack<T, INLINE> {
+impl<T: Copy, const INLINE: usize> TraversalStack<T, INLINE> {
     #[inline]
     pub fn new() -> Self {
         Self {
-            inline: [T::default(); INLINE],
+            inline: [const { MaybeUninit::uninit() }; INLINE],
             len: 0,
             spill: Vec::new(),
         }
@@ -21,7 +26,7 @@ impl<T: Copy + Default, const INLINE: usize> TraversalStack<T, INLINE> {
     #[inline]
     pub fn push(&mut self, value: T) {
         if self.len < INLINE {
-            self.inline[self.len] = value;
+            self.inline[self.len] = MaybeUninit::new(value);
             self.len += 1;
         } else {
             self.spill.push(value);
@@ -37,7 +42,8 @@ impl<T: Copy + Default, const INLINE: usize> TraversalStack<T, INLINE> {
             return None;
         }
         self.len -= 1;
-        Some(self.inline[self.len])
+        // SAFETY: entries below `len` were written by `push`.
+        Some(unsafe { self.inline[self.len].assume_init() })
     }
 }
 

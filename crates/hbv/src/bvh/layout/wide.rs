@@ -144,38 +144,9 @@ impl<const W: usize> WideLayout<W> {
         LEAF | ((count - 1) << LEAF_COUNT_SHIFT) | first
     }
 
-    /// Tests the boxes of node `index`: the hit mask and each lane's entry distance.
-    #[inline]
-    fn test_boxes(&self, index: u32, ray: &BoxRay, tmin: f32, tmax: f32) -> (u32, [f32; W]) {
-        let boxes = &self.nodes[index as usize].boxes;
-        #[cfg(target_arch = "x86_64")]
-        {
-            let mut mask = 0;
-            let mut entry = [0.0f32; W];
-            if W == 8 && self.use_avx {
-                // SAFETY: `use_avx` is true only when the CPU reported AVX; W == 8 makes the cast exact.
-                let boxes8 = unsafe { &*(boxes as *const LaneBoxes<W> as *const LaneBoxes<8>) };
-                let (m, e) = unsafe { super::wide_kernels::boxes_avx(boxes8, ray, tmin, tmax) };
-                entry[..8].copy_from_slice(&e);
-                return (m, entry);
-            }
-            for offset in (0..W).step_by(4) {
-                let (m, e) = super::wide_kernels::boxes_sse(boxes, offset, ray, tmin, tmax);
-                mask |= m << offset;
-                entry[offset..offset + 4].copy_from_slice(&e);
-            }
-            (mask, entry)
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            let _ = self.use_avx;
-            super::wide_kernels::boxes_scalar(boxes, ray, tmin, tmax)
-        }
-    }
-
     /// Nearest-first traversal; `visit_leaf(first_packet, packet_count, ray)` returns `true` to stop.
-    #[inline]
-    fn traverse<C: Counter>(
+    #[inline(always)]
+    fn traverse<C: Counter, K: BoxKernel<W>>(
         &self,
         ray: &mut PreparedRay,
         counter: &mut C,
@@ -201,7 +172,12 @@ impl<const W: usize> WideLayout<W> {
                 }
             } else {
                 counter.boxes_tested(W as u32);
-                let (mut mask, entry) = self.test_boxes(current, &box_ray, ray.tmin, ray.tmax);
+                let (mut mask, entry) = K::test(
+                    &self.nodes[current as usize].boxes,
+                    &box_ray,
+                    ray.tmin,
+                    ray.tmax,
+                );
                 let children = &self.nodes[current as usize].children;
                 if mask != 0 {
                     // Push the hit children farthest first, so the nearest is popped next.
@@ -305,11 +281,78 @@ fn detect_avx() -> bool {
     }
 }
 
-impl<const W: usize> TraversalKernel for WideLayout<W> {
-    fn closest_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
+/// How a traversal tests the `W` boxes of a node. The traversal is compiled once per kernel, so
+/// the AVX one is compiled with AVX enabled and its box test inlined into the loop.
+trait BoxKernel<const W: usize> {
+    fn test(boxes: &LaneBoxes<W>, ray: &BoxRay, tmin: f32, tmax: f32) -> (u32, [f32; W]);
+}
+
+/// SSE, four lanes at a time: the x86_64 baseline.
+#[cfg(target_arch = "x86_64")]
+struct SseBoxes;
+
+#[cfg(target_arch = "x86_64")]
+impl<const W: usize> BoxKernel<W> for SseBoxes {
+    #[inline(always)]
+    fn test(boxes: &LaneBoxes<W>, ray: &BoxRay, tmin: f32, tmax: f32) -> (u32, [f32; W]) {
+        let mut mask = 0;
+        let mut entry = [0.0f32; W];
+        for offset in (0..W).step_by(4) {
+            let (m, e) = super::wide_kernels::boxes_sse(boxes, offset, ray, tmin, tmax);
+            mask |= m << offset;
+            entry[offset..offset + 4].copy_from_slice(&e);
+        }
+        (mask, entry)
+    }
+}
+
+/// AVX, eight lanes at once; used only for `W == 8` on CPUs with AVX, from functions compiled
+/// with AVX enabled.
+#[cfg(target_arch = "x86_64")]
+struct AvxBoxes;
+
+#[cfg(target_arch = "x86_64")]
+impl<const W: usize> BoxKernel<W> for AvxBoxes {
+    #[inline(always)]
+    fn test(boxes: &LaneBoxes<W>, ray: &BoxRay, tmin: f32, tmax: f32) -> (u32, [f32; W]) {
+        assert!(W == 8);
+        // SAFETY: W == 8, so the cast is to the same type; the AVX kernel is only reached through
+        // `WideLayout::*_avx`, which run only when the CPU reported AVX.
+        let boxes8 = unsafe { &*(boxes as *const LaneBoxes<W> as *const LaneBoxes<8>) };
+        let (mask, e) = unsafe { super::wide_kernels::boxes_avx(boxes8, ray, tmin, tmax) };
+        let mut entry = [0.0f32; W];
+        entry.copy_from_slice(&e);
+        (mask, entry)
+    }
+}
+
+/// The portable fallback.
+#[cfg(not(target_arch = "x86_64"))]
+struct ScalarBoxes;
+
+#[cfg(not(target_arch = "x86_64"))]
+impl<const W: usize> BoxKernel<W> for ScalarBoxes {
+    #[inline(always)]
+    fn test(boxes: &LaneBoxes<W>, ray: &BoxRay, tmin: f32, tmax: f32) -> (u32, [f32; W]) {
+        super::wide_kernels::boxes_scalar(boxes, ray, tmin, tmax)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+type DefaultBoxes = SseBoxes;
+#[cfg(not(target_arch = "x86_64"))]
+type DefaultBoxes = ScalarBoxes;
+
+impl<const W: usize> WideLayout<W> {
+    #[inline(always)]
+    fn closest_hit_with<C: Counter, K: BoxKernel<W>>(
+        &self,
+        ray: &Ray,
+        counter: &mut C,
+    ) -> Option<Hit> {
         let mut prepared = PreparedRay::new(ray);
         let mut best = None;
-        self.traverse(&mut prepared, counter, |first, count, ray, counter| {
+        self.traverse::<C, K>(&mut prepared, counter, |first, count, ray, counter| {
             for packet in &self.packets[first..first + count] {
                 counter.triangles_tested(4);
                 let mut candidates = packet.candidates(ray);
@@ -324,10 +367,11 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
         best
     }
 
-    fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
+    #[inline(always)]
+    fn any_hit_with<C: Counter, K: BoxKernel<W>>(&self, ray: &Ray, counter: &mut C) -> bool {
         let mut prepared = PreparedRay::new(ray);
         let mut found = false;
-        self.traverse(&mut prepared, counter, |first, count, ray, counter| {
+        self.traverse::<C, K>(&mut prepared, counter, |first, count, ray, counter| {
             for packet in &self.packets[first..first + count] {
                 counter.triangles_tested(4);
                 let mut candidates = packet.candidates(ray);
@@ -343,5 +387,39 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
             false
         });
         found
+    }
+
+    /// The closest-hit traversal compiled with AVX. Call only when the CPU has AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn closest_hit_avx<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
+        self.closest_hit_with::<C, AvxBoxes>(ray, counter)
+    }
+
+    /// The any-hit traversal compiled with AVX. Call only when the CPU has AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn any_hit_avx<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
+        self.any_hit_with::<C, AvxBoxes>(ray, counter)
+    }
+}
+
+impl<const W: usize> TraversalKernel for WideLayout<W> {
+    fn closest_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if W == 8 && self.use_avx {
+            // SAFETY: `use_avx` is set only when the CPU reported AVX.
+            return unsafe { self.closest_hit_avx(ray, counter) };
+        }
+        self.closest_hit_with::<C, DefaultBoxes>(ray, counter)
+    }
+
+    fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if W == 8 && self.use_avx {
+            // SAFETY: `use_avx` is set only when the CPU reported AVX.
+            return unsafe { self.any_hit_avx(ray, counter) };
+        }
+        self.any_hit_with::<C, DefaultBoxes>(ray, counter)
     }
 }
