@@ -116,6 +116,7 @@ pub(crate) fn boxes_sse<const W: usize>(
 /// Eight boxes with AVX. The caller checks that the CPU has AVX.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx")]
+#[inline]
 pub(crate) unsafe fn boxes_avx(
     boxes: &LaneBoxes<8>,
     ray: &BoxRay,
