@@ -45,12 +45,217 @@
 //! win. On typical scenes it visits a few nodes per level: about one root-to-leaf path, so
 //! building by insertion is O(n log n). Unlike a greedy descent, the result is the exact
 //! minimum over every candidate in the tree.
+//!
+//! # Other costs of the same form
+//!
+//! Nothing above depends on `a_n` being a count: any tree cost `Σ_n w(n) · SA(n)` with a weight
+//! `w` per node works, with `w` in place of `a` on the path, `w(pair of two)` in place of 2 in
+//! (1), the growth of `w` by one more child in place of the `SA(N')` of (2) and by one more
+//! triangle in place of that of (3). [`TreeCost`] names the two weights of this crate: E\[X\]'s
+//! `a_n`, and the SAH's `C_t` per internal node and `C_i` per triangle. [`PlacementRules`]
+//! chooses the cost and which candidates are offered.
+//!
+//! # Taking a node out
+//!
+//! `BuildTree::detach` is the inverse of placing: its parent loses a child, and a parent left
+//! with one child is spliced out (the child takes its place). [`TreeCost::removal_saving`] and
+//! [`TreeCost::placement_increase`] give the exact change of `Σ w SA` of both steps, which is
+//! what insertion-based optimization weighs against each other.
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
 
-use super::tree::{BuildTree, NodeContent, NodeId};
+use super::cost::{expected_tests, sah_cost, SahWeights};
+use super::tree::{BuildNode, BuildTree, NodeContent, NodeId};
 use crate::geometry::Aabb;
+
+/// A tree cost of the form `Σ_n w(n) · SA(n)` (divided by `SA(root)`), named by its weights.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum TreeCost {
+    /// The seed's E\[X\] ([`expected_tests`]): `w(n) = a_n`, the children of an internal node or
+    /// the triangles of a leaf.
+    #[default]
+    ExpectedTests,
+    /// The SAH cost ([`sah_cost`]): `w(n) = C_t` for an internal node whatever its arity,
+    /// `C_i · |n|` for a leaf.
+    Sah(SahWeights),
+}
+
+impl TreeCost {
+    /// The cost of `tree`: [`expected_tests`] or [`sah_cost`].
+    pub fn of(&self, tree: &BuildTree) -> f64 {
+        match *self {
+            TreeCost::ExpectedTests => expected_tests(tree),
+            TreeCost::Sah(weights) => sah_cost(tree, weights),
+        }
+    }
+
+    /// `w` of an internal node with `children` children.
+    pub fn internal_weight(&self, children: usize) -> f64 {
+        match self {
+            TreeCost::ExpectedTests => children as f64,
+            TreeCost::Sah(w) => w.traversal,
+        }
+    }
+
+    /// `w` of a leaf holding `prims` triangles.
+    pub fn leaf_weight(&self, prims: usize) -> f64 {
+        match self {
+            TreeCost::ExpectedTests => prims as f64,
+            TreeCost::Sah(w) => w.intersection * prims as f64,
+        }
+    }
+
+    /// `w(node)`.
+    pub fn weight(&self, node: &BuildNode) -> f64 {
+        match &node.content {
+            NodeContent::Internal(children) => self.internal_weight(children.len()),
+            NodeContent::Leaf(prims) => self.leaf_weight(prims.len()),
+        }
+    }
+
+    /// How much `Σ w(n) SA(n)` falls when `node` is taken out of `tree`, not
+    /// counting the subtree of `node` itself (it does not change). Exact, in `f64` from the
+    /// `f32` areas, as [`TreeCost::of`] sums them.
+    ///
+    /// The parent `P` either keeps its other children (a), losing a child's weight and shrinking
+    /// to them, or is left with one child `S`, which takes its place (b), and `P`'s whole term
+    /// goes; (a parent left with no child goes too, and the same is asked of it). Then every
+    /// ancestor shrinks to its children, up to the first whose box does not change:
+    ///
+    /// ```text
+    ///  (a)     G               G'           (b)      G               G'
+    ///          |               |                     |               |
+    ///          P      ==>      P'    N               P      ==>      S     N     (P released)
+    ///        / | \            / \                   / \
+    ///       N  A  B          A   B                 N   S
+    ///
+    ///  (a)  saving = w(P) SA(P) − w(P') SA(P') + Σ_{A above} w(A) (SA(A) − SA(A'))
+    ///  (b)  saving = w(P) SA(P)                + Σ_{A above} w(A) (SA(A) − SA(A'))
+    /// ```
+    pub fn removal_saving(&self, tree: &BuildTree, node: NodeId) -> f64 {
+        let area = |b: &Aabb| b.surface_area() as f64;
+        let mut saving = 0.0;
+        let mut leaving = node;
+        while let Some(p) = tree.node(leaving).parent {
+            let parent = tree.node(p);
+            let children = parent.children();
+            saving += self.weight(parent) * area(&parent.bounds);
+            match children.len() {
+                // P goes too: it leaves its own parent in turn.
+                1 => leaving = p,
+                2 => {
+                    let sibling = children[usize::from(children[0] == leaving)];
+                    let sibling_box = tree.node(sibling).bounds;
+                    return saving + self.refit_saving(tree, p, sibling_box);
+                }
+                k => {
+                    let fitted = children
+                        .iter()
+                        .filter(|&&c| c != leaving)
+                        .fold(Aabb::EMPTY, |b, &c| b.union(&tree.node(c).bounds));
+                    saving -= self.internal_weight(k - 1) * area(&fitted);
+                    return saving + self.refit_saving(tree, p, fitted);
+                }
+            }
+        }
+        saving
+    }
+
+    /// The saving of refitting the ancestors of `changed`, whose box becomes `new_box`: each
+    /// shrinks to the union of its children, up to the first that does not change (as
+    /// `BuildTree::refit_from` does).
+    fn refit_saving(&self, tree: &BuildTree, mut changed: NodeId, mut new_box: Aabb) -> f64 {
+        let mut saving = 0.0;
+        while let Some(a) = tree.node(changed).parent {
+            let ancestor = tree.node(a);
+            let fitted = ancestor.children().iter().fold(new_box, |b, &c| {
+                if c == changed {
+                    b
+                } else {
+                    b.union(&tree.node(c).bounds)
+                }
+            });
+            if fitted == ancestor.bounds {
+                break;
+            }
+            saving += self.weight(ancestor)
+                * (ancestor.bounds.surface_area() as f64 - fitted.surface_area() as f64);
+            (changed, new_box) = (a, fitted);
+        }
+        saving
+    }
+
+    /// How much `Σ w(n) SA(n)` grows when `item` is put at `placement` (as a node, or a
+    /// triangle joining a leaf): the exact, `f64` form of
+    /// the cost [`PlacementSearch::find_with`] minimizes in `f32`.
+    pub fn placement_increase(
+        &self,
+        tree: &BuildTree,
+        placement: Placement,
+        item: &PlacedItem,
+    ) -> f64 {
+        let area = |b: &Aabb| b.surface_area() as f64;
+        let x = &item.bounds;
+        let own_cost = item.own_cost as f64;
+        let (direct, above) = match placement {
+            Placement::Root => return own_cost,
+            Placement::Pair(sibling) => {
+                let n = tree.node(sibling);
+                let pair = self.internal_weight(2) * area(&n.bounds.union(x));
+                (pair + own_cost, n.parent)
+            }
+            Placement::AddChild(parent) => {
+                let n = tree.node(parent);
+                let grown = self.internal_weight(n.arity() + 1) * area(&n.bounds.union(x));
+                (
+                    grown - self.weight(n) * area(&n.bounds) + own_cost,
+                    n.parent,
+                )
+            }
+            Placement::AddToLeaf(leaf) => {
+                let n = tree.node(leaf);
+                let grown = self.leaf_weight(n.arity() + 1) * area(&n.bounds.union(x));
+                (grown - self.weight(n) * area(&n.bounds), n.parent)
+            }
+        };
+        // Every ancestor grows to include X, up to the first that already does.
+        let mut increase = direct;
+        let mut at = above;
+        while let Some(a) = at {
+            let n = tree.node(a);
+            if n.bounds.contains(x) {
+                break;
+            }
+            increase += self.weight(n) * (area(&n.bounds.union(x)) - area(&n.bounds));
+            at = n.parent;
+        }
+        increase
+    }
+}
+
+/// The rules of a placement search: the cost it minimizes and the candidates it may choose.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PlacementRules {
+    /// The cost whose increase is minimized. Default: E\[X\].
+    pub cost: TreeCost,
+    /// Most triangles a leaf may hold, bounding [`Placement::AddToLeaf`]. Default 1.
+    pub max_leaf_size: usize,
+    /// Whether [`Placement::AddChild`] is a candidate. Default true. Under the SAH cost a node
+    /// pays `C_t` whatever its arity, so a new child costs only the growth of the box: leave it
+    /// out to keep the tree's arity (a node then never gains children).
+    pub may_add_child: bool,
+}
+
+impl Default for PlacementRules {
+    fn default() -> Self {
+        Self {
+            cost: TreeCost::ExpectedTests,
+            max_leaf_size: 1,
+            may_add_child: true,
+        }
+    }
+}
 
 /// Where a new box goes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -63,6 +268,30 @@ pub enum Placement {
     AddChild(NodeId),
     /// Into this leaf, which has room for another triangle.
     AddToLeaf(NodeId),
+}
+
+/// Where a node was before `BuildTree::detach` took it out, so that `BuildTree::reattach`
+/// can put it back as it was.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum FormerPlace {
+    /// It was the root; the tree is now empty.
+    Root,
+    /// It was child `index` of `parent`, which kept two or more other children.
+    ChildOf { parent: NodeId, index: usize },
+    /// It was child `index` (0 or 1) of a parent whose one other child, `sibling`, has taken
+    /// the parent's place.
+    PairedWith { sibling: NodeId, index: usize },
+}
+
+impl FormerPlace {
+    /// The placement that puts a node back at this place (in any child position).
+    pub(crate) fn placement(&self) -> Placement {
+        match *self {
+            FormerPlace::Root => Placement::Root,
+            FormerPlace::ChildOf { parent, .. } => Placement::AddChild(parent),
+            FormerPlace::PairedWith { sibling, .. } => Placement::Pair(sibling),
+        }
+    }
 }
 
 /// What is being placed.
@@ -83,6 +312,12 @@ pub struct PlacementSearch {
     /// Candidate nodes whose cost was evaluated, over all searches: the work of the search,
     /// reported to show that it grows like log n per insertion.
     evaluated: u64,
+}
+
+/// What one search looks for: the item and the rules.
+struct Query<'a> {
+    item: &'a PlacedItem,
+    rules: &'a PlacementRules,
 }
 
 /// A node still to descend into, and the cost inherited by its children.
@@ -120,7 +355,8 @@ impl PlacementSearch {
         self.evaluated
     }
 
-    /// The placement of `item` that increases `Σ a_n SA(n)` least, and that increase.
+    /// The placement of `item` that increases `Σ a_n SA(n)` least, and that increase: the
+    /// search of the insertion builder, [`PlacementSearch::find_with`] under the default rules.
     ///
     /// `max_leaf_size` bounds [`Placement::AddToLeaf`]. Ties go to the first candidate found.
     pub fn find(
@@ -129,26 +365,50 @@ impl PlacementSearch {
         item: &PlacedItem,
         max_leaf_size: usize,
     ) -> (Placement, f32) {
+        let rules = PlacementRules {
+            max_leaf_size,
+            ..PlacementRules::default()
+        };
+        self.find_with(tree, item, &rules)
+    }
+
+    /// The placement of `item` that increases `rules.cost` (as `Σ w(n) SA(n)`) least among the
+    /// candidates `rules` offers, and that increase, computed in `f32`. Ties go to the first
+    /// candidate found.
+    pub fn find_with(
+        &mut self,
+        tree: &BuildTree,
+        item: &PlacedItem,
+        rules: &PlacementRules,
+    ) -> (Placement, f32) {
         let Some(root) = tree.root() else {
             return (Placement::Root, item.own_cost);
         };
         let x = &item.bounds;
-        let leaf_has_room = |prims: &Vec<u32>| item.may_join_leaf && prims.len() < max_leaf_size;
-        // Lower bound of any placement inside a node, above its descent cost: SA(D') >= SA(X),
-        // plus the new node's cost unless it may join a leaf.
-        let tail_bound = x.surface_area()
-            + if item.may_join_leaf && max_leaf_size > 1 {
-                0.0
-            } else {
-                item.own_cost
-            };
+        let cost = &rules.cost;
+        let query = Query { item, rules };
+        // The weight a placement adds: of a new pair node, of one more child, of one more
+        // triangle (2, 1 and 1 for E[X]).
+        let pair_weight = cost.internal_weight(2) as f32;
+        let child_weight = (cost.internal_weight(3) - cost.internal_weight(2)) as f32;
+        let prim_weight = cost.leaf_weight(1) as f32;
+        // Lower bound of any placement inside a node, above its descent cost: the cheapest
+        // candidate's own terms with SA(D') >= SA(X).
+        let x_area = x.surface_area();
+        let mut tail_bound = pair_weight * x_area + item.own_cost;
+        if rules.may_add_child {
+            tail_bound = tail_bound.min(child_weight * x_area + item.own_cost);
+        }
+        if item.may_join_leaf && rules.max_leaf_size > 1 {
+            tail_bound = tail_bound.min(prim_weight * x_area);
+        }
 
         let mut best = (
             Placement::Pair(root),
-            2.0 * tree.node(root).bounds.union(x).surface_area() + item.own_cost,
+            pair_weight * tree.node(root).bounds.union(x).surface_area() + item.own_cost,
         );
         self.queue.clear();
-        self.push_if_open(tree, root, 0.0, x, &leaf_has_room, best.1 - tail_bound);
+        self.push_if_open(tree, &query, root, 0.0, best.1 - tail_bound);
 
         while let Some(Pending { node, descent_cost }) = self.queue.pop() {
             if descent_cost + tail_bound >= best.1 {
@@ -160,30 +420,25 @@ impl PlacementSearch {
             match &n.content {
                 NodeContent::Leaf(_) => {
                     // Queued only when it has room.
-                    let cost = descent_cost + grown_area;
+                    let cost = descent_cost + prim_weight * grown_area;
                     if cost < best.1 {
                         best = (Placement::AddToLeaf(node), cost);
                     }
                 }
                 NodeContent::Internal(children) => {
-                    let cost = descent_cost + grown_area + item.own_cost;
-                    if cost < best.1 {
-                        best = (Placement::AddChild(node), cost);
+                    if rules.may_add_child {
+                        let cost = descent_cost + child_weight * grown_area + item.own_cost;
+                        if cost < best.1 {
+                            best = (Placement::AddChild(node), cost);
+                        }
                     }
                     for &c in children {
                         let child_grown = tree.node(c).bounds.union(x).surface_area();
-                        let pair = descent_cost + 2.0 * child_grown + item.own_cost;
+                        let pair = descent_cost + pair_weight * child_grown + item.own_cost;
                         if pair < best.1 {
                             best = (Placement::Pair(c), pair);
                         }
-                        self.push_if_open(
-                            tree,
-                            c,
-                            descent_cost,
-                            x,
-                            &leaf_has_room,
-                            best.1 - tail_bound,
-                        );
+                        self.push_if_open(tree, &query, c, descent_cost, best.1 - tail_bound);
                     }
                 }
             }
@@ -196,22 +451,24 @@ impl PlacementSearch {
     fn push_if_open(
         &mut self,
         tree: &BuildTree,
+        query: &Query,
         node: NodeId,
         inherited: f32,
-        x: &Aabb,
-        leaf_has_room: &impl Fn(&Vec<u32>) -> bool,
         limit: f32,
     ) {
         let n = tree.node(node);
         let open = match &n.content {
             NodeContent::Internal(_) => true,
-            NodeContent::Leaf(prims) => leaf_has_room(prims),
+            NodeContent::Leaf(prims) => {
+                query.item.may_join_leaf && prims.len() < query.rules.max_leaf_size
+            }
         };
         if !open {
             return;
         }
+        let x = &query.item.bounds;
         let enlargement = n.bounds.union(x).surface_area() - n.bounds.surface_area();
-        let descent_cost = inherited + n.arity() as f32 * enlargement;
+        let descent_cost = inherited + query.rules.cost.weight(n) as f32 * enlargement;
         if descent_cost < limit {
             self.queue.push(Pending { node, descent_cost });
         }
@@ -262,6 +519,80 @@ impl BuildTree {
         }
     }
 
+    /// Takes `node` and its subtree out of the tree, and returns where it was. The node is
+    /// kept in the arena, without a parent, to be put back by [`BuildTree::attach_node`] or
+    /// [`BuildTree::reattach`]; a detached subtree is unreachable from the root, so no search
+    /// can place a node inside itself.
+    ///
+    /// Its parent loses a child and is refitted with its ancestors; a parent left with one
+    /// child is spliced out and released (the child takes its place), and one left with none
+    /// is taken out in turn (see the drawing at [`TreeCost::removal_saving`], which is the
+    /// cost this saves).
+    pub(crate) fn detach(&mut self, node: NodeId) -> FormerPlace {
+        let Some(parent) = self.node(node).parent else {
+            self.set_root(None);
+            return FormerPlace::Root;
+        };
+        self.node_mut(node).parent = None;
+        let NodeContent::Internal(children) = &mut self.node_mut(parent).content else {
+            unreachable!("a parent is an internal node");
+        };
+        let index = children
+            .iter()
+            .position(|&c| c == node)
+            .expect("a node is among its parent's children");
+        children.remove(index);
+        match children[..] {
+            [] => {
+                let former = self.detach(parent);
+                self.release(parent);
+                former
+            }
+            [sibling] => {
+                match self.node(parent).parent {
+                    None => self.set_root(Some(sibling)),
+                    Some(grandparent) => {
+                        self.replace_child(grandparent, parent, sibling);
+                        self.refit_from(grandparent);
+                    }
+                }
+                self.release(parent);
+                FormerPlace::PairedWith { sibling, index }
+            }
+            _ => {
+                self.refit_from(parent);
+                FormerPlace::ChildOf { parent, index }
+            }
+        }
+    }
+
+    /// Puts a node taken out by [`BuildTree::detach`] back where it was, in the same child
+    /// position, growing its ancestors back: the tree is again what it was (but for a parent
+    /// left empty by the detach, which is gone).
+    pub(crate) fn reattach(&mut self, former: FormerPlace, node: NodeId) {
+        let bounds = self.node(node).bounds;
+        match former {
+            FormerPlace::Root => self.set_root(Some(node)),
+            FormerPlace::ChildOf { parent, index } => {
+                if let NodeContent::Internal(children) = &mut self.node_mut(parent).content {
+                    children.insert(index.min(children.len()), node);
+                }
+                self.node_mut(node).parent = Some(parent);
+                self.grow_from(parent, &bounds);
+            }
+            FormerPlace::PairedWith { sibling, index } => {
+                self.attach_node(Placement::Pair(sibling), node);
+                let pair = self.node(node).parent.expect("a paired node has a parent");
+                if let NodeContent::Internal(children) = &mut self.node_mut(pair).content {
+                    // `attach_node` made the pair `[sibling, node]`.
+                    if index == 0 {
+                        children.swap(0, 1);
+                    }
+                }
+            }
+        }
+    }
+
     /// Replaces `old` by `new` in `parent`'s children and makes `parent` the parent of `new`.
     fn replace_child(&mut self, parent: NodeId, old: NodeId, new: NodeId) {
         if let NodeContent::Internal(children) = &mut self.node_mut(parent).content {
@@ -282,6 +613,243 @@ impl BuildTree {
             }
             n.bounds = n.bounds.union(bounds);
             at = n.parent;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::build::{
+        primitive_bounds, Builder, InsertionBuilder, InsertionConfig, InsertionOrder,
+    };
+    use crate::mesh::procedural::{default_scene, torus};
+    use glam::Vec3;
+
+    fn sah() -> TreeCost {
+        TreeCost::Sah(SahWeights {
+            traversal: 1.5,
+            intersection: 0.7,
+        })
+    }
+
+    /// `Σ w(n) SA(n)` over the nodes reachable from `from` (the root when `None`).
+    fn raw_cost(tree: &BuildTree, cost: &TreeCost, from: Option<NodeId>) -> f64 {
+        let mut sum = 0.0;
+        let mut stack: Vec<NodeId> = from.or(tree.root()).into_iter().collect();
+        while let Some(id) = stack.pop() {
+            let n = tree.node(id);
+            sum += cost.weight(n) * n.bounds.surface_area() as f64;
+            stack.extend_from_slice(n.children());
+        }
+        sum
+    }
+
+    fn trees() -> Vec<(BuildTree, usize)> {
+        let meshes = [torus(Vec3::ZERO, 2.0, 0.5, 16, 8), default_scene(1)];
+        let mut trees = Vec::new();
+        for mesh in &meshes {
+            for (order, leaf) in [
+                (InsertionOrder::Input, 1),
+                (InsertionOrder::Shuffle { seed: 5 }, 3),
+            ] {
+                let tree = InsertionBuilder::new(InsertionConfig {
+                    order,
+                    max_leaf_size: leaf,
+                })
+                .build(mesh);
+                trees.push((tree, leaf));
+            }
+        }
+        trees
+    }
+
+    fn close(a: f64, b: f64, scale: f64) -> bool {
+        (a - b).abs() <= 1e-9 * scale
+    }
+
+    #[test]
+    fn default_rules_are_the_builders() {
+        let (tree, _) = &trees()[0];
+        let item = PlacedItem {
+            bounds: Aabb::new(Vec3::splat(0.1), Vec3::splat(0.2)),
+            own_cost: 0.06,
+            may_join_leaf: true,
+        };
+        let rules = PlacementRules {
+            max_leaf_size: 4,
+            ..PlacementRules::default()
+        };
+        let mut search = PlacementSearch::new();
+        assert_eq!(
+            search.find(tree, &item, 4),
+            search.find_with(tree, &item, &rules)
+        );
+    }
+
+    #[test]
+    fn removal_saving_and_placement_increase_are_exact() {
+        for (tree, _) in trees() {
+            for cost in [TreeCost::ExpectedTests, sah()] {
+                let rules = PlacementRules {
+                    cost,
+                    max_leaf_size: 1,
+                    may_add_child: cost == TreeCost::ExpectedTests,
+                };
+                let mut tree = tree.clone();
+                let mut search = PlacementSearch::new();
+                let total = raw_cost(&tree, &cost, None);
+                for node in (1..tree.nodes().len() as NodeId).step_by(7) {
+                    if tree.node(node).parent.is_none() {
+                        continue;
+                    }
+                    let before = raw_cost(&tree, &cost, None);
+                    let own = raw_cost(&tree, &cost, Some(node));
+                    let saving = cost.removal_saving(&tree, node);
+                    tree.detach(node);
+                    let detached = raw_cost(&tree, &cost, None) + own;
+                    assert!(close(before - detached, saving, total), "node {node}");
+
+                    let item = PlacedItem {
+                        bounds: tree.node(node).bounds,
+                        own_cost: 0.0,
+                        may_join_leaf: false,
+                    };
+                    let (placement, approx) = search.find_with(&tree, &item, &rules);
+                    let increase = cost.placement_increase(&tree, placement, &item);
+                    assert!((approx as f64 - increase).abs() <= 1e-4 * total);
+                    tree.attach_node(placement, node);
+                    let attached = raw_cost(&tree, &cost, None);
+                    assert!(close(attached - detached, increase, total), "node {node}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn the_search_finds_the_cheapest_of_all_candidates() {
+        for (tree, leaf) in trees() {
+            for cost in [TreeCost::ExpectedTests, sah()] {
+                for may_add_child in [true, false] {
+                    let rules = PlacementRules {
+                        cost,
+                        max_leaf_size: leaf,
+                        may_add_child,
+                    };
+                    let total = raw_cost(&tree, &cost, None);
+                    let mut search = PlacementSearch::new();
+                    for k in 0..20 {
+                        let c = Vec3::new(k as f32 * 0.37 - 3.0, (k % 5) as f32 * 0.6 - 1.0, 0.2);
+                        let b = Aabb::new(c, c + Vec3::splat(0.05 + 0.03 * k as f32));
+                        let item = PlacedItem {
+                            bounds: b,
+                            own_cost: cost.leaf_weight(1) as f32 * b.surface_area(),
+                            may_join_leaf: k % 2 == 0,
+                        };
+                        let (found, _) = search.find_with(&tree, &item, &rules);
+                        let found = cost.placement_increase(&tree, found, &item);
+                        let mut cheapest = f64::INFINITY;
+                        tree.walk(|id, _| {
+                            let n = tree.node(id);
+                            let mut candidates = vec![Placement::Pair(id)];
+                            if !n.is_leaf() && may_add_child {
+                                candidates.push(Placement::AddChild(id));
+                            }
+                            if n.is_leaf() && item.may_join_leaf && n.arity() < leaf {
+                                candidates.push(Placement::AddToLeaf(id));
+                            }
+                            for p in candidates {
+                                cheapest = cheapest.min(cost.placement_increase(&tree, p, &item));
+                            }
+                        });
+                        assert!(
+                            found <= cheapest + 1e-6 * total,
+                            "{cost:?}: found {found}, cheapest {cheapest}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn detach_then_reattach_restores_the_tree_exactly() {
+        for (tree, leaf) in trees() {
+            let mut work = tree.clone();
+            for node in 0..tree.nodes().len() as NodeId {
+                let former = work.detach(node);
+                work.reattach(former, node);
+                assert_eq!(work, tree, "node {node}, leaf {leaf}");
+            }
+        }
+    }
+
+    #[test]
+    fn detach_splices_out_parents_left_with_one_child_or_none() {
+        // root [P, b], P [a]: taking `a` out empties P, which goes, and then root is left with
+        // `b` alone, which takes its place.
+        let cube = |lo: f32| Aabb::new(Vec3::splat(lo), Vec3::splat(lo + 1.0));
+        let mut t = BuildTree::new();
+        let a = t.push_leaf(vec![0], cube(0.0));
+        let b = t.push_leaf(vec![1], cube(3.0));
+        let p = t.push_internal(vec![a]);
+        let root = t.push_internal(vec![p, b]);
+        t.set_root(Some(root));
+        let cost = TreeCost::ExpectedTests;
+        let before = raw_cost(&t, &cost, None);
+        let saving = cost.removal_saving(&t, a);
+        assert_eq!(
+            t.detach(a),
+            FormerPlace::PairedWith {
+                sibling: b,
+                index: 0
+            }
+        );
+        assert_eq!(t.root(), Some(b));
+        assert_eq!(t.released_count(), 2);
+        assert!(close(
+            before - raw_cost(&t, &cost, None) - 6.0,
+            saving,
+            before
+        ));
+        t.reattach(
+            FormerPlace::PairedWith {
+                sibling: b,
+                index: 0,
+            },
+            a,
+        );
+        t.validate(&[cube(0.0), cube(3.0)], 1).unwrap();
+        let r = t.node(t.root().unwrap());
+        assert_eq!(r.children(), &[a, b]);
+        assert!(raw_cost(&t, &cost, None) < before);
+    }
+
+    #[test]
+    fn detached_and_moved_trees_stay_valid() {
+        let mesh = torus(Vec3::ZERO, 2.0, 0.5, 16, 8);
+        let prim_bounds = primitive_bounds(&mesh);
+        for (order, leaf) in [(InsertionOrder::Morton, 1), (InsertionOrder::Input, 4)] {
+            let mut tree = InsertionBuilder::new(InsertionConfig {
+                order,
+                max_leaf_size: leaf,
+            })
+            .build(&mesh);
+            let mut search = PlacementSearch::new();
+            for node in (0..tree.nodes().len() as NodeId).rev().step_by(3) {
+                if tree.node(node).parent.is_none() {
+                    continue;
+                }
+                tree.detach(node);
+                let item = PlacedItem {
+                    bounds: tree.node(node).bounds,
+                    own_cost: 0.0,
+                    may_join_leaf: false,
+                };
+                let (placement, _) = search.find(&tree, &item, leaf);
+                tree.attach_node(placement, node);
+                tree.validate(&prim_bounds, leaf).unwrap();
+            }
         }
     }
 }

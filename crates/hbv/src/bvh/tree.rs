@@ -59,12 +59,21 @@ impl BuildNode {
 /// An n-ary bounding volume hierarchy over triangle ids, stored in an arena.
 ///
 /// Internal nodes hold child nodes, leaves hold triangle ids; a node's box bounds everything
-/// below it. Nodes are referred to by [`NodeId`]; ids stay valid while the tree grows.
+/// below it. Nodes are referred to by [`NodeId`]; ids stay valid while the tree grows (but see
+/// below for the optimizers and [`BuildTree::compact`]).
 /// Degenerate triangles are normally left out by builders (they are never hit).
+///
+/// The tree is what is reachable from the root. Optimizers that restructure it
+/// ([`crate::bvh::optimize`]) release the nodes they take out: released nodes stay in the arena,
+/// unreachable, and are reused by the next node pushed; [`BuildTree::compact`] drops them and
+/// renumbers the rest.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct BuildTree {
     nodes: Vec<BuildNode>,
     root: Option<NodeId>,
+    /// Released nodes, reused last released first by [`BuildTree::push_leaf`] and
+    /// [`BuildTree::push_internal`].
+    released: Vec<NodeId>,
 }
 
 /// Shape statistics of a tree, as `hbv info` reports them.
@@ -101,6 +110,7 @@ impl BuildTree {
         Self {
             nodes: Vec::with_capacity(nodes),
             root: None,
+            released: Vec::new(),
         }
     }
 
@@ -112,7 +122,8 @@ impl BuildTree {
         self.root.is_none()
     }
 
-    /// All nodes of the arena, indexed by [`NodeId`].
+    /// All nodes of the arena, indexed by [`NodeId`]: the tree's, and any released node not yet
+    /// reused (unreachable from the root; see [`BuildTree::compact`]).
     pub fn nodes(&self) -> &[BuildNode] {
         &self.nodes
     }
@@ -162,9 +173,89 @@ impl BuildTree {
     }
 
     fn push(&mut self, node: BuildNode) -> NodeId {
+        if let Some(id) = self.released.pop() {
+            self.nodes[id as usize] = node;
+            return id;
+        }
         let id = NodeId::try_from(self.nodes.len()).expect("more than 2^32 nodes");
         self.nodes.push(node);
         id
+    }
+
+    /// Number of released nodes waiting in the arena to be reused.
+    pub fn released_count(&self) -> usize {
+        self.released.len()
+    }
+
+    /// Gives node `id`, which nothing in the tree refers to any more, back to the arena: it is
+    /// emptied and reused by the next push.
+    pub(crate) fn release(&mut self, id: NodeId) {
+        let node = self.node_mut(id);
+        node.bounds = Aabb::EMPTY;
+        node.parent = None;
+        node.content = NodeContent::Internal(Vec::new());
+        self.released.push(id);
+    }
+
+    /// Recomputes the box of internal node `node` as the union of its children's, and of its
+    /// ancestors in turn, stopping at the first box that does not change (the boxes above it
+    /// are then right too). A leaf's box is left as it is: it depends on triangles the tree
+    /// does not know the boxes of, so refitting starts at its parent.
+    pub(crate) fn refit_from(&mut self, node: NodeId) {
+        let mut at = Some(node);
+        if self.node(node).is_leaf() {
+            at = self.node(node).parent;
+        }
+        while let Some(id) = at {
+            let n = self.node(id);
+            let fitted = n
+                .children()
+                .iter()
+                .fold(Aabb::EMPTY, |b, &c| b.union(&self.node(c).bounds));
+            if fitted == n.bounds {
+                break;
+            }
+            let n = self.node_mut(id);
+            n.bounds = fitted;
+            at = n.parent;
+        }
+    }
+
+    /// Rebuilds the arena with only the nodes reachable from the root, in depth-first order
+    /// (parents before children, children in order): drops released nodes and anything else
+    /// unreachable. Node ids change; the tree (boxes, child order, triangles) does not.
+    pub fn compact(&mut self) {
+        let mut new_id = vec![NodeId::MAX; self.nodes.len()];
+        let mut order = Vec::new();
+        self.walk(|id, _| {
+            new_id[id as usize] = order.len() as NodeId;
+            order.push(id);
+        });
+        let mut nodes = Vec::with_capacity(order.len());
+        for &old in &order {
+            let node = std::mem::replace(
+                &mut self.nodes[old as usize],
+                BuildNode {
+                    bounds: Aabb::EMPTY,
+                    parent: None,
+                    content: NodeContent::Internal(Vec::new()),
+                },
+            );
+            let content = match node.content {
+                NodeContent::Internal(children) => {
+                    NodeContent::Internal(children.iter().map(|&c| new_id[c as usize]).collect())
+                }
+                leaf => leaf,
+            };
+            nodes.push(BuildNode {
+                bounds: node.bounds,
+                parent: node.parent.map(|p| new_id[p as usize]),
+                content,
+            });
+        }
+        self.nodes = nodes;
+        self.root = self.root.map(|r| new_id[r as usize]);
+        self.released.clear();
     }
 
     /// Visits the nodes reachable from the root, parents before children, with their depth.
@@ -209,7 +300,8 @@ impl BuildTree {
     /// - every triangle with a non-empty box is in exactly one leaf, and no other triangle is;
     /// - every node's box contains its children's boxes (or its triangles' boxes);
     /// - parent links match child lists; internal nodes and leaves are not empty;
-    /// - leaves hold at most `max_leaf_size` triangles.
+    /// - leaves hold at most `max_leaf_size` triangles;
+    /// - no node is reached twice, and no released node is reached.
     pub fn validate(
         &self,
         prim_bounds: &[Aabb],
@@ -223,8 +315,17 @@ impl BuildTree {
                 return err(format!("root {r} has a parent"));
             }
         }
+        // Released nodes are marked reached up front, so that reaching one is caught as a repeat.
+        let mut reached = vec![false; self.nodes.len()];
+        for &id in &self.released {
+            reached[id as usize] = true;
+        }
         self.walk(|id, _| {
             if problem.is_some() {
+                return;
+            }
+            if std::mem::replace(&mut reached[id as usize], true) {
+                problem = Some(format!("node {id} is reached twice, or was released"));
                 return;
             }
             let node = self.node(id);
@@ -309,5 +410,82 @@ mod tests {
         assert!(err.0.contains("triangle 1 is in no leaf"), "{err}");
         let err = t.validate(&[cube(0.0, 2.0)], 1).unwrap_err();
         assert!(err.0.contains("does not contain triangle 0"), "{err}");
+    }
+
+    /// ```text
+    ///        root
+    ///       /    \
+    ///      ab     c
+    ///     /  \
+    ///    a    b
+    /// ```
+    fn three_leaves() -> (BuildTree, [Aabb; 3]) {
+        let bounds = [cube(0.0, 1.0), cube(2.0, 3.0), cube(4.0, 5.0)];
+        let mut t = BuildTree::new();
+        let a = t.push_leaf(vec![0], bounds[0]);
+        let b = t.push_leaf(vec![1], bounds[1]);
+        let c = t.push_leaf(vec![2], bounds[2]);
+        let ab = t.push_internal(vec![a, b]);
+        let root = t.push_internal(vec![c, ab]);
+        t.set_root(Some(root));
+        (t, bounds)
+    }
+
+    #[test]
+    fn released_nodes_are_reused_and_compact_drops_them() {
+        let (mut t, bounds) = three_leaves();
+        let (a, b, ab, root) = (0, 1, 3, 4);
+        // Make `b` a child of the root and drop `ab` by hand: root [c, b, a].
+        if let NodeContent::Internal(children) = &mut t.node_mut(root).content {
+            children.retain(|&c| c != ab);
+            children.extend([b, a]);
+        }
+        t.node_mut(a).parent = Some(root);
+        t.node_mut(b).parent = Some(root);
+        t.release(ab);
+        t.validate(&bounds, 1).unwrap();
+        assert_eq!((t.nodes().len(), t.released_count()), (5, 1));
+        assert_eq!(
+            t.push_leaf(vec![], Aabb::EMPTY),
+            ab,
+            "the released node is reused"
+        );
+        t.release(ab);
+
+        let before = t.clone();
+        t.compact();
+        assert_eq!((t.nodes().len(), t.released_count()), (4, 0));
+        t.validate(&bounds, 1).unwrap();
+        assert_eq!(t.shape(), before.shape());
+        assert_eq!(t.root(), Some(0));
+        let prims = |t: &BuildTree| {
+            let mut p = Vec::new();
+            t.walk(|id, _| p.extend_from_slice(t.node(id).prims()));
+            p
+        };
+        assert_eq!(prims(&t), prims(&before));
+    }
+
+    #[test]
+    fn validate_finds_a_released_node_in_the_tree() {
+        let (mut t, bounds) = three_leaves();
+        t.release(0);
+        t.node_mut(0).content = NodeContent::Leaf(vec![0]);
+        t.node_mut(0).parent = Some(3);
+        let err = t.validate(&bounds, 1).unwrap_err();
+        assert!(err.0.contains("released"), "{err}");
+    }
+
+    #[test]
+    fn refit_shrinks_ancestors_to_their_children() {
+        let (mut t, bounds) = three_leaves();
+        let (b, ab, root) = (1, 3, 4);
+        t.node_mut(b).bounds = cube(0.5, 1.0);
+        t.refit_from(b);
+        assert_eq!(t.node(ab).bounds, cube(0.0, 1.0));
+        assert_eq!(t.node(root).bounds, cube(0.0, 5.0));
+        t.node_mut(b).bounds = bounds[1];
+        t.refit_from(ab);
+        assert_eq!(t.node(ab).bounds, cube(0.0, 3.0));
     }
 }
