@@ -3,4 +3,6 @@
 
 pub mod atomic_write;
 pub mod hit_file;
+pub mod plot;
 pub mod ray_file;
+pub mod ray_sets;

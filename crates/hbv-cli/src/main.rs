@@ -23,9 +23,21 @@ enum Command {
     Info(commands::info::InfoArgs),
     /// Trace a ray file against a mesh and write the hits (file formats: ../shared/RAYS.md).
     Trace(commands::trace::TraceArgs),
+    /// Measure rays per second of every layout on camera, diffuse and shadow rays.
+    Bench(commands::bench::BenchArgs),
+    /// Every builder on one table: build time, tree shape, predicted cost E[X] and the tests
+    /// actually counted on isotropic lines and real rays.
+    BuildCompare(commands::build_compare::BuildCompareArgs),
 }
 
 fn main() -> ExitCode {
+    // Like every Unix filter: a reader that closes the pipe (`hbv ... | head`) ends the program
+    // quietly instead of making each `println!` fail.
+    #[cfg(unix)]
+    // SAFETY: restoring the default action of SIGPIPE before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     // A bug must still end in one clear line, not a backtrace dump.
     std::panic::set_hook(Box::new(|info| {
         let location = info
@@ -44,6 +56,8 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Info(args) => commands::info::run(&args),
         Command::Trace(args) => commands::trace::run(&args),
+        Command::Bench(args) => commands::bench::run(&args),
+        Command::BuildCompare(args) => commands::build_compare::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

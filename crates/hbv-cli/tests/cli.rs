@@ -281,3 +281,59 @@ fn trace_matches_brute_force_on_shared_scenes() {
         assert_trace_matches_brute_force(&path, &mesh, &rays_at(&mesh, rays, 7), dir.path());
     }
 }
+
+#[test]
+fn build_compare_rows_agree_with_their_expected_cost_and_plot() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = torus(Vec3::ZERO, 2.0, 0.7, 48, 24);
+    let path = dir.path().join("torus.obj");
+    write_obj(&mesh, &path);
+    let plot = dir.path().join("cost.png");
+    let out = hbv(&[
+        "build-compare",
+        path.to_str().unwrap(),
+        "--rays",
+        "20000",
+        "--builder",
+        "insertion",
+        "--builder",
+        "binned-sah",
+        "--json",
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let rows: Vec<serde_json::Value> = serde_json::from_slice(&out.stdout).unwrap();
+    let names: Vec<&str> = rows
+        .iter()
+        .map(|r| r["builder"].as_str().unwrap())
+        .collect();
+    assert_eq!(
+        names,
+        [
+            "insertion",
+            "insertion+optimize",
+            "binned-sah",
+            "binned-sah+optimize"
+        ]
+    );
+    for r in &rows {
+        for key in [
+            "optimize",
+            "build_seconds",
+            "expected_tests",
+            "sah_cost",
+            "measured_tests_per_line",
+        ] {
+            assert!(r.get(key).is_some(), "missing {key} in {r}");
+        }
+        let (e, m, se) = (
+            r["expected_tests"].as_f64().unwrap(),
+            r["measured_tests_per_line"].as_f64().unwrap(),
+            r["measured_tests_per_line_std_error"].as_f64().unwrap(),
+        );
+        assert!((m - e).abs() < 5.0 * se + 1e-3 * e, "{r}");
+    }
+    let png = std::fs::read(&plot).unwrap();
+    assert_eq!(&png[1..4], b"PNG");
+}

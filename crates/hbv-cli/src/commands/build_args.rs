@@ -5,8 +5,12 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::{Args, ValueEnum};
-use hbv::bvh::build::{InsertionBuilder, InsertionConfig, InsertionOrder};
+use hbv::bvh::build::{
+    BinnedSahBuilder, BinnedSahConfig, Builder, InsertionBuilder, InsertionConfig, InsertionOrder,
+    LbvhBuilder, LbvhConfig, MedianBuilder, MedianConfig, SweepSahBuilder, SweepSahConfig,
+};
 use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
+use hbv::bvh::optimize::ReinsertionOptimizer;
 use hbv::bvh::BuildTree;
 use hbv::mesh::procedural::default_scene;
 use hbv::{Accelerator, TriangleMesh};
@@ -18,6 +22,14 @@ pub const DEFAULT_SCENE_DETAIL: u32 = 4;
 pub enum BuilderName {
     /// Goldsmith–Salmon incremental insertion (the seed's construction).
     Insertion,
+    /// Top-down SAH over binned centroids (Wald 2007), parallel.
+    BinnedSah,
+    /// Top-down SAH over every split position (full sweep).
+    SweepSah,
+    /// Top-down object-median split (the simple baseline).
+    Median,
+    /// Morton-code LBVH (the fast baseline).
+    Lbvh,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -68,9 +80,26 @@ pub struct BuildArgs {
     /// Seed of the shuffled insertion order.
     #[arg(long, default_value_t = 0x5eed)]
     pub seed: u64,
-    /// Most triangles per leaf.
-    #[arg(long = "leaf-size", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=255))]
-    pub leaf_size: u32,
+    /// Improve the tree by reinsertion (Bittner et al. 2013) after building it.
+    #[arg(long)]
+    pub optimize: bool,
+    /// Most triangles per leaf [default: 1 for insertion (the seed's model), the builder's
+    /// own default otherwise].
+    #[arg(long = "leaf-size", value_parser = clap::value_parser!(u32).range(1..=255))]
+    pub leaf_size: Option<u32>,
+}
+
+impl Default for BuildArgs {
+    /// The command line's defaults: shuffled insertion, leaf size 1, no optimization.
+    fn default() -> Self {
+        Self {
+            builder: BuilderName::Insertion,
+            order: OrderName::Shuffle,
+            seed: 0x5eed,
+            optimize: false,
+            leaf_size: None,
+        }
+    }
 }
 
 impl BuildArgs {
@@ -81,37 +110,99 @@ impl BuildArgs {
                 OrderName::Input => InsertionOrder::Input,
                 OrderName::Morton => InsertionOrder::Morton,
             },
-            max_leaf_size: self.leaf_size as usize,
+            max_leaf_size: self.leaf_size.unwrap_or(1) as usize,
         }
     }
 
-    /// Builds the tree and returns it with the build time in seconds.
-    pub fn build(&self, mesh: &TriangleMesh) -> (BuildTree, f64) {
-        let (tree, seconds, _) = self.build_with_report(mesh);
-        (tree, seconds)
+    /// The builder these options name.
+    pub fn builder(&self) -> Box<dyn Builder> {
+        let leaf = |default: usize| self.leaf_size.map_or(default, |k| k as usize);
+        match self.builder {
+            BuilderName::Insertion => Box::new(InsertionBuilder::new(self.insertion_config())),
+            BuilderName::BinnedSah => {
+                let mut config = BinnedSahConfig::default();
+                config.leaf.max_leaf_size = leaf(config.leaf.max_leaf_size);
+                Box::new(BinnedSahBuilder::new(config))
+            }
+            BuilderName::SweepSah => {
+                let mut config = SweepSahConfig::default();
+                config.leaf.max_leaf_size = leaf(config.leaf.max_leaf_size);
+                Box::new(SweepSahBuilder::new(config))
+            }
+            BuilderName::Median => {
+                let max_leaf_size = leaf(MedianConfig::default().max_leaf_size);
+                Box::new(MedianBuilder::new(MedianConfig { max_leaf_size }))
+            }
+            BuilderName::Lbvh => {
+                let max_leaf_size = leaf(LbvhConfig::default().max_leaf_size);
+                Box::new(LbvhBuilder::new(LbvhConfig { max_leaf_size }))
+            }
+        }
     }
 
-    /// [`BuildArgs::build`], also returning the insertion search's mean nodes evaluated per
-    /// triangle.
-    pub fn build_with_report(&self, mesh: &TriangleMesh) -> (BuildTree, f64, f64) {
+    /// Builds the tree (and optimizes it with `--optimize`); returns it with the seconds spent.
+    pub fn build(&self, mesh: &TriangleMesh) -> (BuildTree, f64) {
+        let built = self.build_with_report(mesh);
+        (built.tree, built.build_seconds + built.optimize_seconds)
+    }
+
+    /// [`BuildArgs::build`] with the details of the work done.
+    pub fn build_with_report(&self, mesh: &TriangleMesh) -> BuildReport {
         let start = Instant::now();
-        let (tree, evaluated) = match self.builder {
+        let (mut tree, search_nodes_per_insertion) = match self.builder {
             BuilderName::Insertion => {
                 InsertionBuilder::new(self.insertion_config()).build_with_report(mesh)
             }
+            _ => (self.builder().build(mesh), 0.0),
         };
-        (tree, start.elapsed().as_secs_f64(), evaluated)
+        let build_seconds = start.elapsed().as_secs_f64();
+        let start = Instant::now();
+        if self.optimize {
+            ReinsertionOptimizer::default().optimize(&mut tree);
+        }
+        BuildReport {
+            tree,
+            build_seconds,
+            optimize_seconds: start.elapsed().as_secs_f64(),
+            search_nodes_per_insertion,
+        }
     }
 
     /// A one-line description of the builder and its options.
     pub fn describe(&self) -> String {
-        let order = match self.order {
-            OrderName::Shuffle => format!("shuffle, seed {}", self.seed),
-            OrderName::Input => "input".into(),
-            OrderName::Morton => "morton".into(),
+        let leaf = self
+            .leaf_size
+            .map_or("default".to_string(), |k| k.to_string());
+        let built = match self.builder {
+            BuilderName::Insertion => {
+                let order = match self.order {
+                    OrderName::Shuffle => format!("shuffle, seed {}", self.seed),
+                    OrderName::Input => "input".into(),
+                    OrderName::Morton => "morton".into(),
+                };
+                format!(
+                    "insertion (order {order}, leaf size {})",
+                    self.leaf_size.unwrap_or(1)
+                )
+            }
+            _ => format!("{} (leaf size {leaf})", self.builder().name()),
         };
-        format!("insertion (order {order}, leaf size {})", self.leaf_size)
+        if self.optimize {
+            built + " + reinsertion optimization"
+        } else {
+            built
+        }
     }
+}
+
+/// A built tree and what it cost to make.
+pub struct BuildReport {
+    pub tree: BuildTree,
+    pub build_seconds: f64,
+    /// 0 without `--optimize`.
+    pub optimize_seconds: f64,
+    /// The insertion search's mean nodes evaluated per triangle; 0 for the other builders.
+    pub search_nodes_per_insertion: f64,
 }
 
 /// Loads `path`, or makes the built-in scene when there is none, with the load time in seconds.

@@ -21,7 +21,13 @@ pub struct InfoArgs {
 
 pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     let (mesh, name, load_seconds) = load_mesh(args.mesh.as_deref())?;
-    let (tree, build_seconds, evaluated) = args.build.build_with_report(&mesh);
+    let built = args.build.build_with_report(&mesh);
+    let (tree, build_seconds, evaluated) = (
+        built.tree,
+        built.build_seconds,
+        built.search_nodes_per_insertion,
+    );
+    let optimize_seconds = built.optimize_seconds;
     let shape = tree.shape();
     let weights = SahWeights::default();
     let e = expected_tests(&tree);
@@ -40,10 +46,12 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
             "degenerate": mesh.degenerate_count(),
             "vertices": mesh.positions().len(),
             "bounds": { "min": lo, "max": hi },
-            "builder": "insertion",
+            "builder": args.build.builder().name(),
             "builder_options": args.build.describe(),
             "load_seconds": load_seconds,
             "build_seconds": build_seconds,
+            "optimize": args.build.optimize,
+            "optimize_seconds": optimize_seconds,
             "search_nodes_per_insertion": evaluated,
             "nodes": shape.nodes,
             "leaves": shape.leaves,
@@ -78,7 +86,14 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     );
     println!("builder     {}", args.build.describe());
     println!("load        {load_seconds:.3} s");
-    println!("build       {build_seconds:.3} s ({evaluated:.1} nodes evaluated per insertion)");
+    if evaluated > 0.0 {
+        println!("build       {build_seconds:.3} s ({evaluated:.1} nodes evaluated per insertion)");
+    } else {
+        println!("build       {build_seconds:.3} s");
+    }
+    if args.build.optimize {
+        println!("optimize    {optimize_seconds:.3} s");
+    }
     println!(
         "nodes       {} ({} leaves, {} internal)",
         shape.nodes,

@@ -1,5 +1,7 @@
 //! One module per subcommand, and the options they share.
 
+pub mod bench;
 pub mod build_args;
+pub mod build_compare;
 pub mod info;
 pub mod trace;

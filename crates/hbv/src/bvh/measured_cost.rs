@@ -4,6 +4,7 @@
 use glam::Vec3;
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
+use rayon::prelude::*;
 
 use super::layout::RecursiveLayout;
 use crate::geometry::{Aabb, Ray};
@@ -48,13 +49,8 @@ pub struct MeanEstimate {
 }
 
 impl MeanEstimate {
-    fn of(samples: impl Iterator<Item = f64>) -> Self {
-        let (mut n, mut sum, mut sum_sq) = (0.0, 0.0, 0.0);
-        for x in samples {
-            n += 1.0;
-            sum += x;
-            sum_sq += x * x;
-        }
+    /// From the count, sum and sum of squares of the samples.
+    fn from_sums((n, sum, sum_sq): (f64, f64, f64)) -> Self {
         if n < 2.0 {
             return Self {
                 mean: if n == 1.0 { sum } else { 0.0 },
@@ -72,23 +68,36 @@ impl MeanEstimate {
 
 /// Mean tests per line (box and triangle tests, not counting the root's own box) when each line
 /// is traversed without early exit: the quantity E\[X\] predicts for isotropic lines.
+/// In parallel on the current rayon pool.
 pub fn tests_per_line(layout: &RecursiveLayout, lines: &[Ray]) -> MeanEstimate {
-    MeanEstimate::of(lines.iter().map(|line| {
-        let mut stats = TraversalStats::default();
-        layout.count_tests_without_early_exit(line, &mut stats);
-        stats.tests().saturating_sub(1) as f64
-    }))
+    let sums = lines
+        .par_iter()
+        .map(|line| {
+            let mut stats = TraversalStats::default();
+            layout.count_tests_without_early_exit(line, &mut stats);
+            let x = stats.tests().saturating_sub(1) as f64;
+            (1.0, x, x * x)
+        })
+        .reduce(|| (0.0, 0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
+    MeanEstimate::from_sums(sums)
 }
 
-/// Work per ray of closest-hit queries (with early termination) on the given rays: boxes and
-/// triangles tested, summed over all rays (root box included).
+/// Work of closest-hit queries (with early termination) on the given rays: boxes and
+/// triangles tested, summed over all rays (root box included). In parallel.
 pub fn closest_hit_work(layout: &RecursiveLayout, rays: &[Ray]) -> TraversalStats {
     use crate::query::Accelerator;
-    let mut stats = TraversalStats::default();
-    for ray in rays {
-        layout.intersect_counted(ray, &mut stats);
-    }
-    stats
+    rays.par_chunks(1024)
+        .map(|chunk| {
+            let mut stats = TraversalStats::default();
+            for ray in chunk {
+                layout.intersect_counted(ray, &mut stats);
+            }
+            stats
+        })
+        .reduce(TraversalStats::default, |mut a, b| {
+            a += b;
+            a
+        })
 }
 
 #[cfg(test)]

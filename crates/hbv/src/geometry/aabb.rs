@@ -106,6 +106,16 @@ impl Aabb {
         (near <= far).then_some((near, far))
     }
 
+    /// The plain slab test, without the widening of [`Aabb::intersect_interval`]: whether the
+    /// ray's computed interval meets the box. For measuring how many boxes a line meets (where
+    /// the widening, relative to `t`, would inflate small boxes far from the origin), never for
+    /// finding hits.
+    #[inline]
+    pub fn hit_by_unwidened(&self, ray: &PreparedRay) -> bool {
+        let (near, far) = self.slab_distances(ray);
+        near.max(ray.tmin) <= far.min(ray.tmax)
+    }
+
     /// Whether the ray meets the box inside its `[tmin, tmax]`; see [`Aabb::intersect_interval`].
     #[inline]
     pub fn hit_by(&self, ray: &PreparedRay) -> bool {

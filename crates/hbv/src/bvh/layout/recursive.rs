@@ -94,14 +94,15 @@ impl RecursiveLayout {
     pub fn count_tests_without_early_exit(&self, ray: &Ray, stats: &mut TraversalStats) {
         stats.rays += 1;
         if ray.is_valid() {
-            self.traverse(&mut PreparedRay::new(ray), stats, |_, _, _| false);
+            self.traverse::<_, false>(&mut PreparedRay::new(ray), stats, |_, _, _| false);
         }
     }
 
     /// Depth-first visit of the nodes whose boxes the ray hits. `visit_leaf` tests a leaf's
-    /// triangles and returns `true` to stop the traversal; it may shrink `ray.tmax`.
+    /// triangles and returns `true` to stop the traversal; it may shrink `ray.tmax`. `WIDENED`
+    /// selects the conservative box test of queries (true) or the plain one of measurement.
     #[inline]
-    fn traverse<C: Counter>(
+    fn traverse<C: Counter, const WIDENED: bool>(
         &self,
         ray: &mut PreparedRay,
         counter: &mut C,
@@ -117,7 +118,12 @@ impl RecursiveLayout {
             // exactly the recursion "for each child: if the ray hits it, descend".
             let node = &self.nodes[index as usize];
             counter.boxes_tested(1);
-            if !node.bounds.hit_by(ray) {
+            let hit = if WIDENED {
+                node.bounds.hit_by(ray)
+            } else {
+                node.bounds.hit_by_unwidened(ray)
+            };
+            if !hit {
                 continue;
             }
             counter.node_visited();
@@ -150,7 +156,7 @@ impl TraversalKernel for RecursiveLayout {
     fn closest_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
         let mut prepared = PreparedRay::new(ray);
         let mut best: Option<Hit> = None;
-        self.traverse(&mut prepared, counter, |ray, range, _| {
+        self.traverse::<_, true>(&mut prepared, counter, |ray, range, _| {
             for i in range {
                 record_closer_hit(&self.triangles[i], self.prim_ids[i], ray, &mut best);
             }
@@ -162,7 +168,7 @@ impl TraversalKernel for RecursiveLayout {
     fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
         let mut prepared = PreparedRay::new(ray);
         let mut found = false;
-        self.traverse(&mut prepared, counter, |ray, range, _| {
+        self.traverse::<_, true>(&mut prepared, counter, |ray, range, _| {
             found = self.triangles[range]
                 .iter()
                 .any(|t| t.intersect(ray).is_some());

@@ -203,6 +203,7 @@ impl<const W: usize> WideLayout<W> {
                         n += 1;
                     }
                     for &item in &order[..n - 1] {
+                        self.prefetch(item.0);
                         stack.push(item);
                     }
                     current = order[n - 1].0;
@@ -216,6 +217,28 @@ impl<const W: usize> WideLayout<W> {
                     None => return,
                 }
             };
+        }
+    }
+}
+
+impl<const W: usize> WideLayout<W> {
+    /// Asks the CPU to start loading the node or leaf that `reference` names: postponed
+    /// children are fetched while the nearer subtree is traversed.
+    #[inline(always)]
+    fn prefetch(&self, reference: u32) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+            let address = if reference & LEAF != 0 {
+                self.packets
+                    .as_ptr()
+                    .wrapping_add((reference & LEAF_FIRST_MASK) as usize)
+                    as *const i8
+            } else {
+                self.nodes.as_ptr().wrapping_add(reference as usize) as *const i8
+            };
+            // SAFETY: a prefetch is a hint; it never faults, whatever the address.
+            unsafe { _mm_prefetch::<_MM_HINT_T0>(address) };
         }
     }
 }

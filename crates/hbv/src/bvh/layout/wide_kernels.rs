@@ -3,6 +3,10 @@
 //! versions compute the same IEEE operations in the same order, so they return the same bits
 //! (tested below), and every layout answers exactly like the scalar reference.
 
+// The kernels index several arrays (near and far sides, origin, direction) with one axis or
+// lane counter; iterators over one of them would hide that symmetry.
+#![allow(clippy::needless_range_loop)]
+
 use crate::geometry::{PreparedRay, Triangle};
 
 /// Child boxes of a wide node, structure of arrays: `planes[side][axis][lane]`, side 0 the

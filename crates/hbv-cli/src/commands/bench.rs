@@ -1,0 +1,431 @@
+//! `hbv bench`: rays per second of every layout on camera, diffuse and shadow rays, on one thread
+//! and on all, with the tests per ray that explain them.
+//!
+//! The tree is built once; each layout is laid out from it, so layouts are compared on the same
+//! tree. Each measurement is the median of `--repeat` timed batches after one untimed warm-up
+//! batch (which faults in the result buffer and warms the caches and the thread pool).
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::{bail, Context};
+use clap::{Args, ValueEnum};
+use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
+use hbv::bvh::BuildTree;
+use hbv::geometry::Ray;
+use hbv::{Accelerator, TraversalStats, TriangleMesh};
+use hbv_cli::ray_file;
+use hbv_cli::ray_sets::{camera_image_size, RaySet, Stage};
+use rayon::ThreadPool;
+use serde::Serialize;
+
+use super::build_args::{load_mesh, thread_pool, BuildArgs, LayoutName};
+
+#[derive(Args)]
+pub struct BenchArgs {
+    /// Mesh file (.obj, .ply, .gltf, .glb); the built-in scene when omitted.
+    pub mesh: Option<PathBuf>,
+    /// Layout to measure; repeat for several. Default: every layout.
+    #[arg(long = "layout", value_name = "LAYOUT", value_enum)]
+    pub layouts: Vec<LayoutName>,
+    #[command(flatten)]
+    pub build: BuildArgs,
+    /// Threads of the parallel measurement (every layout is also measured on 1 thread); 0 uses
+    /// every core.
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    /// Rays per set (the camera set is the first N pixels of a ⌈√N⌉-wide image: 512 × 512 by
+    /// default).
+    #[arg(long, default_value_t = 1 << 18)]
+    pub rays: usize,
+    /// Timed runs per measurement, after one warm-up run; the median is reported.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
+    pub repeat: u32,
+    /// Seed of the diffuse and shadow rays (the camera rays take none).
+    #[arg(long = "ray-seed", default_value_t = 1)]
+    pub ray_seed: u64,
+    /// Rays of each set, spread evenly over it, on which tests per ray are counted.
+    #[arg(long = "counted-rays", default_value_t = 10_000)]
+    pub counted_rays: usize,
+    /// Print one JSON object instead of tables.
+    #[arg(long)]
+    pub json: bool,
+    /// Write the ray sets to DIR as primary.npz, diffuse.npz and shadow.npz (ray files of
+    /// ../shared/RAYS.md) and stop, without building or tracing.
+    #[arg(long = "write-rays", value_name = "DIR")]
+    pub write_rays: Option<PathBuf>,
+}
+
+/// The two queries of [`hbv::Accelerator`], named as in `hbv trace --json`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Query {
+    Closest,
+    Occluded,
+}
+
+impl Query {
+    fn name(self) -> &'static str {
+        match self {
+            Query::Closest => "closest",
+            Query::Occluded => "occluded",
+        }
+    }
+}
+
+/// What is measured on each set: camera and bounce rays want the closest hit; shadow rays, and
+/// bounce rays used as ambient-occlusion probes, only whether anything is hit.
+const CASES: [(RaySet, Query); 4] = [
+    (RaySet::Primary, Query::Closest),
+    (RaySet::Diffuse, Query::Closest),
+    (RaySet::Diffuse, Query::Occluded),
+    (RaySet::Shadow, Query::Occluded),
+];
+
+/// One layout as laid out for the benchmark.
+#[derive(Serialize)]
+struct LayoutReport {
+    layout: String,
+    /// Bytes of node and triangle data.
+    memory_bytes: usize,
+    layout_seconds: f64,
+}
+
+/// One measurement: a layout, a set, a query, a thread count.
+#[derive(Serialize)]
+struct Measurement {
+    layout: String,
+    ray_set: &'static str,
+    query: &'static str,
+    threads: usize,
+    rays: usize,
+    /// Median of `runs`.
+    mrays_per_second: f64,
+    /// Every timed run, in Mrays/s, in the order run.
+    runs: Vec<f64>,
+    /// Fraction of the rays that hit (closest) or are occluded.
+    hit_fraction: f64,
+    memory_bytes: usize,
+    /// Mean work per ray on the counted subsample (the same on any thread count).
+    nodes_per_ray: f64,
+    boxes_per_ray: f64,
+    triangles_per_ray: f64,
+    counted_rays: u64,
+}
+
+#[derive(Serialize)]
+struct Report {
+    mesh: String,
+    triangles: usize,
+    builder: String,
+    load_seconds: f64,
+    build_seconds: f64,
+    rays_per_set: usize,
+    ray_seed: u64,
+    camera: [u32; 2],
+    light: [f32; 3],
+    repeat: u32,
+    thread_counts: Vec<usize>,
+    layouts: Vec<LayoutReport>,
+    results: Vec<Measurement>,
+}
+
+/// Runs `hbv bench`: writes the ray sets, or measures every requested layout on them.
+pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
+    let (mesh, name, load_seconds) = load_mesh(args.mesh.as_deref())?;
+    if mesh.triangle_count() == mesh.degenerate_count() {
+        bail!("{name} has no triangle of non-zero area: there is no surface to shoot rays from");
+    }
+    let sets: Vec<(RaySet, Vec<Ray>)> = RaySet::ALL
+        .iter()
+        .map(|&set| (set, set.generate(&mesh, args.rays, args.ray_seed)))
+        .collect();
+    if let Some(dir) = &args.write_rays {
+        return write_ray_sets(dir, &sets);
+    }
+
+    let pools = thread_pools(args.threads)?;
+    let all_threads = pools.last().expect("at least one pool");
+    let (tree, build_seconds) = all_threads.install(|| args.build.build(&mesh));
+
+    let mut layouts = Vec::new();
+    let mut results = Vec::new();
+    for layout in requested_layouts(&args.layouts) {
+        let (report, measurements) = measure_layout(layout, &tree, &mesh, &sets, &pools, args);
+        layouts.push(report);
+        results.extend(measurements);
+    }
+
+    let report = Report {
+        mesh: name,
+        triangles: mesh.triangle_count(),
+        builder: args.build.describe(),
+        load_seconds,
+        build_seconds,
+        rays_per_set: args.rays,
+        ray_seed: args.ray_seed,
+        camera: camera_image_size(args.rays).into(),
+        light: Stage::new(&mesh.bounds()).light.to_array(),
+        repeat: args.repeat,
+        thread_counts: pools.iter().map(|p| p.current_num_threads()).collect(),
+        layouts,
+        results,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_tables(&report);
+    }
+    Ok(())
+}
+
+/// Lays the tree out as `layout` and measures it on every (set, query) case and every pool.
+fn measure_layout(
+    layout: LayoutName,
+    tree: &BuildTree,
+    mesh: &TriangleMesh,
+    sets: &[(RaySet, Vec<Ray>)],
+    pools: &[ThreadPool],
+    args: &BenchArgs,
+) -> (LayoutReport, Vec<Measurement>) {
+    let start = Instant::now();
+    let (accel, memory_bytes) = lay_out_measured(layout, tree, mesh);
+    let report = LayoutReport {
+        layout: layout_name(layout),
+        memory_bytes,
+        layout_seconds: start.elapsed().as_secs_f64(),
+    };
+    let mut results = Vec::new();
+    for (set, query) in CASES {
+        let rays = &sets.iter().find(|(s, _)| *s == set).expect("every set").1;
+        let stats = count_tests(accel.as_ref(), rays, query, args.counted_rays);
+        for pool in pools {
+            let (runs, hits) = time_runs(accel.as_ref(), rays, query, pool, args.repeat);
+            results.push(Measurement {
+                layout: report.layout.clone(),
+                ray_set: set.name(),
+                query: query.name(),
+                threads: pool.current_num_threads(),
+                rays: rays.len(),
+                mrays_per_second: median(&runs),
+                runs,
+                hit_fraction: hits as f64 / rays.len().max(1) as f64,
+                memory_bytes,
+                nodes_per_ray: per_ray(stats.nodes_visited, stats.rays),
+                boxes_per_ray: per_ray(stats.boxes_tested, stats.rays),
+                triangles_per_ray: per_ray(stats.triangles_tested, stats.rays),
+                counted_rays: stats.rays,
+            });
+        }
+    }
+    (report, results)
+}
+
+/// Writes each set as `DIR/NAME.npz`, creating `DIR` if needed.
+fn write_ray_sets(dir: &std::path::Path, sets: &[(RaySet, Vec<Ray>)]) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    for (set, rays) in sets {
+        let path = dir.join(format!("{}.npz", set.name()));
+        ray_file::write_rays(&path, rays)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("wrote {} ({} rays)", path.display(), rays.len());
+    }
+    Ok(())
+}
+
+/// A pool of one thread, and one of `threads` (0: every core) unless that is also one.
+fn thread_pools(threads: usize) -> anyhow::Result<Vec<ThreadPool>> {
+    let mut pools = vec![thread_pool(1)?];
+    let all = thread_pool(threads)?;
+    if all.current_num_threads() > 1 {
+        pools.push(all);
+    }
+    Ok(pools)
+}
+
+/// The layouts asked for, each once in the order given; every layout when none is.
+fn requested_layouts(asked: &[LayoutName]) -> Vec<LayoutName> {
+    if asked.is_empty() {
+        return LayoutName::value_variants().to_vec();
+    }
+    let mut layouts = Vec::new();
+    for &l in asked {
+        if !layouts.contains(&l) {
+            layouts.push(l);
+        }
+    }
+    layouts
+}
+
+/// The layout's name as `--layout` spells it.
+fn layout_name(layout: LayoutName) -> String {
+    layout
+        .to_possible_value()
+        .map_or_else(|| format!("{layout:?}"), |v| v.get_name().to_owned())
+}
+
+/// [`LayoutName::lay_out`], also returning the layout's memory: [`Accelerator`] does not report
+/// it, each layout type does.
+fn lay_out_measured(
+    layout: LayoutName,
+    tree: &BuildTree,
+    mesh: &TriangleMesh,
+) -> (Box<dyn Accelerator>, usize) {
+    fn boxed<A: Accelerator + 'static>(
+        a: A,
+        bytes: impl Fn(&A) -> usize,
+    ) -> (Box<dyn Accelerator>, usize) {
+        let memory = bytes(&a);
+        (Box::new(a), memory)
+    }
+    match layout {
+        LayoutName::Recursive => boxed(
+            RecursiveLayout::new(tree, mesh),
+            RecursiveLayout::memory_bytes,
+        ),
+        LayoutName::Skip => boxed(SkipLayout::new(tree, mesh), SkipLayout::memory_bytes),
+        LayoutName::Ordered => boxed(OrderedLayout::new(tree, mesh), OrderedLayout::memory_bytes),
+        LayoutName::Wide4 => boxed(Wide4Layout::new(tree, mesh), Wide4Layout::memory_bytes),
+        LayoutName::Wide8 => boxed(Wide8Layout::new(tree, mesh), Wide8Layout::memory_bytes),
+    }
+}
+
+/// Traces `rays` once untimed, then `repeat` times timed, on `pool`; returns each timed run's
+/// Mrays/s and the number of hits (or occluded rays). The timed span is the batch call alone,
+/// as in `hbv trace`: it includes collecting the answers, not freeing them.
+fn time_runs(
+    accel: &dyn Accelerator,
+    rays: &[Ray],
+    query: Query,
+    pool: &ThreadPool,
+    repeat: u32,
+) -> (Vec<f64>, usize) {
+    let timed = || -> (f64, usize) {
+        let start = Instant::now();
+        match query {
+            Query::Closest => {
+                let hits = accel.intersect_batch(rays);
+                let seconds = start.elapsed().as_secs_f64();
+                (seconds, hits.iter().filter(|h| h.is_some()).count())
+            }
+            Query::Occluded => {
+                let occluded = accel.occluded_batch(rays);
+                let seconds = start.elapsed().as_secs_f64();
+                (seconds, occluded.iter().filter(|&&o| o).count())
+            }
+        }
+    };
+    pool.install(|| {
+        let (_, hits) = timed();
+        let runs = (0..repeat)
+            .map(|_| {
+                let (seconds, _) = timed();
+                rays.len() as f64 / seconds.max(1e-9) / 1e6
+            })
+            .collect();
+        (runs, hits)
+    })
+}
+
+/// Work of `query` on at most `count` rays spread evenly over `rays` (every k-th), so that a
+/// camera subsample covers the whole image and not its top rows.
+fn count_tests(
+    accel: &dyn Accelerator,
+    rays: &[Ray],
+    query: Query,
+    count: usize,
+) -> TraversalStats {
+    let mut stats = TraversalStats::default();
+    if count == 0 {
+        return stats;
+    }
+    let stride = rays.len().div_ceil(count).max(1);
+    for ray in rays.iter().step_by(stride) {
+        match query {
+            Query::Closest => {
+                accel.intersect_counted(ray, &mut stats);
+            }
+            Query::Occluded => {
+                accel.occluded_counted(ray, &mut stats);
+            }
+        }
+    }
+    stats
+}
+
+fn per_ray(total: u64, rays: u64) -> f64 {
+    if rays == 0 {
+        0.0
+    } else {
+        total as f64 / rays as f64
+    }
+}
+
+fn median(values: &[f64]) -> f64 {
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    match sorted.len() {
+        0 => 0.0,
+        n if n % 2 == 1 => sorted[n / 2],
+        n => (sorted[n / 2 - 1] + sorted[n / 2]) / 2.0,
+    }
+}
+
+fn print_tables(report: &Report) {
+    let [w, h] = report.camera;
+    let threads: Vec<String> = report.thread_counts.iter().map(|t| t.to_string()).collect();
+    println!("mesh      {}: {} triangles", report.mesh, report.triangles);
+    println!("load      {:.3} s", report.load_seconds);
+    println!(
+        "build     {:.3} s, {}",
+        report.build_seconds, report.builder
+    );
+    println!(
+        "rays      {} per set, seed {}: primary = {w} × {h} camera, diffuse, shadow (light at [{:.4}, {:.4}, {:.4}])",
+        report.rays_per_set, report.ray_seed, report.light[0], report.light[1], report.light[2]
+    );
+    println!(
+        "timing    Mrays/s on {} thread(s), median of {} runs after a warm-up",
+        threads.join(" and "),
+        report.repeat
+    );
+    println!();
+    println!("{:<10} {:>10} {:>9}", "layout", "memory", "lay out");
+    for l in &report.layouts {
+        println!(
+            "{:<10} {:>6.1} MiB {:>7.3} s",
+            l.layout,
+            l.memory_bytes as f64 / (1 << 20) as f64,
+            l.layout_seconds
+        );
+    }
+    println!();
+
+    let mut header = format!(
+        "{:<10} {:<8} {:<9} {:>6}",
+        "layout", "set", "query", "hit %"
+    );
+    for t in &report.thread_counts {
+        header += &format!(" {:>9}", format!("{t} thr"));
+    }
+    header += &format!(" {:>9} {:>9} {:>9}", "nodes/ray", "boxes/ray", "tris/ray");
+    println!("{header}");
+    // Measurements come grouped by (layout, set, query), one per thread count, in pool order.
+    for row in report.results.chunks(report.thread_counts.len()) {
+        let m = &row[0];
+        let mut line = format!(
+            "{:<10} {:<8} {:<9} {:>6.1}",
+            m.layout,
+            m.ray_set,
+            m.query,
+            100.0 * m.hit_fraction
+        );
+        for r in row {
+            line += &format!(" {:>9.3}", r.mrays_per_second);
+        }
+        line += &format!(
+            " {:>9.1} {:>9.1} {:>9.1}",
+            m.nodes_per_ray, m.boxes_per_ray, m.triangles_per_ray
+        );
+        println!("{line}");
+    }
+}

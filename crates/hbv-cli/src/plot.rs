@@ -1,0 +1,86 @@
+//! Charts for reports: predicted against measured cost.
+
+use std::path::Path;
+
+use anyhow::Context;
+use plotters::prelude::*;
+use plotters::style::{register_font, FontStyle};
+
+/// DejaVu Sans (Bitstream Vera licence, `assets/DejaVuSans.LICENSE`), embedded so that charts
+/// render the same on every machine, with or without system fonts.
+const FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+
+/// One labelled point of a scatter chart.
+pub struct LabelledPoint {
+    pub label: String,
+    pub x: f64,
+    pub y: f64,
+}
+
+/// A series of points drawn in one colour with a legend entry.
+pub struct Series {
+    pub name: String,
+    pub points: Vec<LabelledPoint>,
+}
+
+/// Draws `series` as a scatter chart with the line `y = x`, as a PNG at `path` (written through
+/// a temporary file, then renamed).
+pub fn predicted_vs_measured(
+    path: &Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+) -> anyhow::Result<()> {
+    register_font("sans-serif", FontStyle::Normal, FONT)
+        .map_err(|_| anyhow::anyhow!("cannot load the embedded font"))?;
+    let all = series.iter().flat_map(|s| s.points.iter());
+    let max = all.map(|p| p.x.max(p.y)).fold(1.0f64, f64::max) * 1.1;
+    let tmp = path.with_extension("tmp.png");
+    {
+        let root = BitMapBackend::new(&tmp, (1000, 750)).into_drawing_area();
+        root.fill(&WHITE)?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 24))
+            .margin(20)
+            .x_label_area_size(50)
+            .y_label_area_size(60)
+            .build_cartesian_2d(0.0..max, 0.0..max)?;
+        chart
+            .configure_mesh()
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .label_style(("sans-serif", 14))
+            .draw()?;
+        chart
+            .draw_series(LineSeries::new([(0.0, 0.0), (max, max)], BLACK.mix(0.4)))?
+            .label("measured = predicted")
+            .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLACK.mix(0.4)));
+        for (k, s) in series.iter().enumerate() {
+            let color = Palette99::pick(k).to_rgba();
+            chart
+                .draw_series(
+                    s.points
+                        .iter()
+                        .map(|p| Circle::new((p.x, p.y), 5, color.filled())),
+                )?
+                .label(s.name.as_str())
+                .legend(move |(x, y)| Circle::new((x + 10, y), 5, color.filled()));
+            chart.draw_series(s.points.iter().map(|p| {
+                Text::new(
+                    p.label.clone(),
+                    (p.x, p.y),
+                    ("sans-serif", 12).into_font().color(&color),
+                )
+            }))?;
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.9))
+            .border_style(BLACK)
+            .draw()?;
+        root.present()?;
+    }
+    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(())
+}
