@@ -65,6 +65,11 @@ def parse_args():
         default=REPO / "target" / "release" / "hbv",
         help="the hbv binary (default: target/release/hbv)",
     )
+    p.add_argument(
+        "--builder",
+        default="binned-sah",
+        help="hbv builder for the traced tree (default binned-sah, the fastest to trace)",
+    )
     p.add_argument("--rays", type=int, default=1 << 18, help="rays per set (default 262144)")
     p.add_argument("--ray-seed", type=int, default=1, help="seed of the diffuse and shadow rays")
     p.add_argument("--repeat", type=int, default=3, help="timed runs per measurement (median)")
@@ -162,10 +167,10 @@ class Embree:
         return {"occluded": result != -1}, runs
 
 
-def hbv_trace(hbv, mesh, rays_path, out_path, layout, query, repeat):
+def hbv_trace(hbv, mesh, rays_path, out_path, layout, query, repeat, builder):
     """Answers of `hbv trace` and the Mrays/s of each of `repeat` invocations."""
     cmd = [str(hbv), "trace", str(mesh), "--rays", str(rays_path), "--out", str(out_path)]
-    cmd += ["--threads", "1", "--json", "--layout", layout]
+    cmd += ["--threads", "1", "--json", "--layout", layout, "--builder", builder]
     if query == "occluded":
         cmd.append("--occluded")
     runs = []
@@ -235,7 +240,7 @@ def compare_mesh(mesh, args, layouts):
         for layout in layouts:
             out_path = work / f"hits_{ray_set}_{query}_{layout}.npz"
             answers, runs = hbv_trace(args.hbv, mesh, rays_path, out_path, layout, query,
-                                      args.repeat)
+                                      args.repeat, args.builder)
             row["hbv"][layout] = {
                 "mrays_per_second": statistics.median(runs),
                 "runs": runs,

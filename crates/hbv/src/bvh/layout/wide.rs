@@ -222,23 +222,29 @@ impl<const W: usize> WideLayout<W> {
 }
 
 impl<const W: usize> WideLayout<W> {
-    /// Asks the CPU to start loading the node or leaf that `reference` names: postponed
-    /// children are fetched while the nearer subtree is traversed.
+    /// Asks the CPU to start loading the node or leaf that `reference` names, every cache line
+    /// of it: postponed children are fetched while the nearer subtree is traversed.
     #[inline(always)]
     fn prefetch(&self, reference: u32) {
         #[cfg(target_arch = "x86_64")]
         {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let address = if reference & LEAF != 0 {
-                self.packets
-                    .as_ptr()
-                    .wrapping_add((reference & LEAF_FIRST_MASK) as usize)
-                    as *const i8
+            let (address, bytes) = if reference & LEAF != 0 {
+                let first = (reference & LEAF_FIRST_MASK) as usize;
+                let count = ((reference & !LEAF) >> LEAF_COUNT_SHIFT) as usize + 1;
+                let size = std::mem::size_of::<TrianglePacket>();
+                (
+                    self.packets.as_ptr().wrapping_add(first) as *const i8,
+                    size * count.min(2),
+                )
             } else {
-                self.nodes.as_ptr().wrapping_add(reference as usize) as *const i8
+                let node = self.nodes.as_ptr().wrapping_add(reference as usize);
+                (node as *const i8, std::mem::size_of::<WideNode<W>>())
             };
-            // SAFETY: a prefetch is a hint; it never faults, whatever the address.
-            unsafe { _mm_prefetch::<_MM_HINT_T0>(address) };
+            for line in (0..bytes).step_by(64) {
+                // SAFETY: a prefetch is a hint; it never faults, whatever the address.
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(address.wrapping_add(line)) };
+            }
         }
     }
 }
