@@ -29,7 +29,7 @@ pub struct TraceArgs {
     #[command(flatten)]
     pub build: BuildArgs,
     /// How the tree is laid out for traversal.
-    #[arg(long, value_enum, default_value_t = LayoutName::Ordered)]
+    #[arg(long, value_enum, default_value_t = LayoutName::Wide8)]
     pub layout: LayoutName,
     /// Print one JSON object of timings instead of text.
     #[arg(long)]

@@ -146,7 +146,7 @@ impl<const W: usize> WideLayout<W> {
 
     /// Nearest-first traversal; `visit_leaf(first_packet, packet_count, ray)` returns `true` to stop.
     #[inline(always)]
-    fn traverse<C: Counter, K: BoxKernel<W>>(
+    fn traverse<C: Counter, K: BoxKernel<W>, const NEAREST_FIRST: bool>(
         &self,
         ray: &mut PreparedRay,
         counter: &mut C,
@@ -184,6 +184,20 @@ impl<const W: usize> WideLayout<W> {
                     let hits = mask.count_ones() as usize;
                     if hits == 1 {
                         let lane = mask.trailing_zeros() as usize;
+                        current = children[lane];
+                        continue;
+                    }
+                    if !NEAREST_FIRST {
+                        // Any hit: every hit child must be searched anyway and the first hit
+                        // found ends the query, so skip the sort.
+                        let lane = mask.trailing_zeros() as usize;
+                        mask &= mask - 1;
+                        while mask != 0 {
+                            let other = mask.trailing_zeros() as usize;
+                            mask &= mask - 1;
+                            self.prefetch(children[other]);
+                            stack.push((children[other], entry[other]));
+                        }
                         current = children[lane];
                         continue;
                     }
@@ -381,7 +395,7 @@ impl<const W: usize> WideLayout<W> {
     ) -> Option<Hit> {
         let mut prepared = PreparedRay::new(ray);
         let mut best = None;
-        self.traverse::<C, K>(&mut prepared, counter, |first, count, ray, counter| {
+        self.traverse::<C, K, true>(&mut prepared, counter, |first, count, ray, counter| {
             for packet in &self.packets[first..first + count] {
                 counter.triangles_tested(4);
                 let mut candidates = packet.candidates(ray);
@@ -400,7 +414,7 @@ impl<const W: usize> WideLayout<W> {
     fn any_hit_with<C: Counter, K: BoxKernel<W>>(&self, ray: &Ray, counter: &mut C) -> bool {
         let mut prepared = PreparedRay::new(ray);
         let mut found = false;
-        self.traverse::<C, K>(&mut prepared, counter, |first, count, ray, counter| {
+        self.traverse::<C, K, false>(&mut prepared, counter, |first, count, ray, counter| {
             for packet in &self.packets[first..first + count] {
                 counter.triangles_tested(4);
                 let mut candidates = packet.candidates(ray);
