@@ -78,12 +78,14 @@ impl Triangle {
     /// equation (see `plane_distance`). Elsewhere the sheared-frame `t` is kept: it is consistent
     /// with the edge tests (both use the same rounded shear), which matters for grazing rays.
     ///
-    /// Why it is watertight: each vertex is transformed by the same operations whichever triangle
-    /// it belongs to, and each edge function is `fl(fl(a b) - fl(c d))`. Rounding is monotonic, so
-    /// the f32 result has the exact sign of `a b - c d` or is zero; only a zero can be wrong, and
-    /// then the three functions are recomputed in f64, where the products of f32 inputs are exact.
-    /// So the side of every shared edge (and every edge through a shared vertex) is decided
-    /// exactly and identically for both triangles that share it: no ray slips between them.
+    /// Why it is watertight, and exact: the f32 edge functions come with an error bound per edge
+    /// (`edge_error`); where an edge function exceeds its bound its sign is certain (the sign of
+    /// the exactly sheared geometry). Only when some edge function is within its bound of zero —
+    /// a ray within rounding distance of an edge or vertex, or a grazing ray — is the triangle
+    /// decided in f64 (`intersect_near_edge`). Which precision decides an edge depends only on
+    /// that edge, and each vertex is transformed by the same operations whichever triangle it
+    /// belongs to, so both triangles of a shared edge decide it alike: no ray slips between
+    /// them, and none is lost at a silhouette to the f32 rounding of the shear.
     #[inline]
     pub fn intersect(&self, ray: &PreparedRay) -> Option<TriangleHit> {
         let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
@@ -99,55 +101,114 @@ impl Triangle {
         let cx = c[kx] - s.x * c[kz];
         let cy = c[ky] - s.y * c[kz];
 
-        let mut u = cx * by - cy * bx;
-        let mut v = ax * cy - ay * cx;
-        let mut w = bx * ay - by * ax;
+        let u = cx * by - cy * bx;
+        let v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
 
-        if u == 0.0 || v == 0.0 || w == 0.0 {
-            // A zero may be the rounding of a tiny nonzero value: decide exactly in f64.
-            let (ax, ay, bx, by, cx, cy) = (
-                ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64,
-            );
-            u = (cx * by - cy * bx) as f32;
-            v = (ax * cy - ay * cx) as f32;
-            w = (bx * ay - by * ax) as f32;
-            // Casting to f32 keeps signs, but a tiny f64 value may round to zero: that is a
-            // point on the edge within f32 resolution, counted as on the edge.
-        }
-
-        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+        // Each edge function's f32 sign is certain when it exceeds its error bound; the bound
+        // of an edge depends only on that edge's two vertices (see `edge_error`).
+        let (ma, mb, mc) = (
+            a.abs().max_element(),
+            b.abs().max_element(),
+            c.abs().max_element(),
+        );
+        let eu = edge_error(mb.max(mc), bx, by, cx, cy);
+        let ev = edge_error(mc.max(ma), cx, cy, ax, ay);
+        let ew = edge_error(ma.max(mb), ax, ay, bx, by);
+        let positive = u > eu || v > ev || w > ew;
+        let negative = u < -eu || v < -ev || w < -ew;
+        if positive && negative {
             return None;
         }
+        let certain = u.abs() > eu && v.abs() > ev && w.abs() > ew;
+        if !certain {
+            // Near an edge or a vertex (or a grazing ray): decide in f64.
+            return self.intersect_near_edge(ray, [u, v, w], [eu, ev, ew]);
+        }
+        // All three certain and of one sign: the determinant is their sum, never zero.
         let det = u + v + w;
-        if det == 0.0 {
-            // The ray is parallel to the triangle's plane.
-            return None;
-        }
 
         let az = s.z * a[kz];
         let bz = s.z * b[kz];
         let cz = s.z * c[kz];
         let mut t = (u * az + v * bz + w * cz) / det;
-        if t.abs()
-            <= Self::NEAR_ORIGIN_ULPS
-                * f32::EPSILON
-                * a.abs().max(b.abs()).max(c.abs()).max_element()
-                * s.z.abs()
-        {
+        if t.abs() <= Self::NEAR_ORIGIN_ULPS * f32::EPSILON * ma.max(mb).max(mc) * s.z.abs() {
             // The hit is within rounding distance of the origin: whether it lies before or
             // after `tmin` is decided by the exact plane distance, not by rounding.
             t = self.plane_distance(ray);
         }
+        Self::accept(ray, t, v / det, w / det)
+    }
+
+    /// A hit at `t` with barycentrics `(u, v)` if `t` is finite and inside `[tmin, tmax]`.
+    #[inline]
+    fn accept(ray: &PreparedRay, t: f32, u: f32, v: f32) -> Option<TriangleHit> {
         // NaN fails both comparisons; an infinite `t` (overflow, or a direction parallel to the
         // plane to f64 precision) is no hit.
-        if !(t >= ray.tmin && t <= ray.tmax && t.is_finite()) {
+        (t >= ray.tmin && t <= ray.tmax && t.is_finite()).then_some(TriangleHit { t, u, v })
+    }
+
+    /// The test of [`Triangle::intersect`] for the rare case where some f32 edge function is
+    /// within its error bound of zero: the ray passes within rounding distance of an edge or a
+    /// vertex, or grazes the triangle.
+    ///
+    /// The three edge functions are recomputed in f64 from the exact vertex differences and an
+    /// f64 shear (error about 1e-16 instead of 1e-7: a grazing ray that passes a hair inside a
+    /// thin projected triangle is found). Each edge keeps its f32 sign where that was certain and
+    /// takes the f64 sign otherwise: whether an edge's sign comes from f32 or f64 depends only on
+    /// that edge, and f64 edge functions of a shared edge are exact negatives, so the two
+    /// triangles of every edge still decide it alike — watertight. Zeros count as on the edge.
+    #[cold]
+    fn intersect_near_edge(
+        &self,
+        ray: &PreparedRay,
+        f32_edges: [f32; 3],
+        bounds: [f32; 3],
+    ) -> Option<TriangleHit> {
+        let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
+        let d = ray.direction.as_dvec3();
+        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        let o = ray.origin.as_dvec3();
+        let (a, b, c) = (
+            self.p0.as_dvec3() - o,
+            self.p1.as_dvec3() - o,
+            self.p2.as_dvec3() - o,
+        );
+        let (ax, ay) = (a[kx] - sx * a[kz], a[ky] - sy * a[kz]);
+        let (bx, by) = (b[kx] - sx * b[kz], b[ky] - sy * b[kz]);
+        let (cx, cy) = (c[kx] - sx * c[kz], c[ky] - sy * c[kz]);
+        let exact = [cx * by - cy * bx, ax * cy - ay * cx, bx * ay - by * ax];
+
+        let sign = |k: usize| -> i8 {
+            let (f, e) = (f32_edges[k], bounds[k]);
+            if f > e {
+                1
+            } else if f < -e {
+                -1
+            } else if exact[k] > 0.0 {
+                1
+            } else if exact[k] < 0.0 {
+                -1
+            } else {
+                0
+            }
+        };
+        let signs = [sign(0), sign(1), sign(2)];
+        if signs.contains(&1) && signs.contains(&-1) {
             return None;
         }
-        Some(TriangleHit {
-            t,
-            u: v / det,
-            v: w / det,
-        })
+        let [u, v, w] = exact;
+        let det = u + v + w;
+        if det == 0.0 {
+            // The ray is parallel to the triangle's plane.
+            return None;
+        }
+        let mut t = ((u * sz * a[kz] + v * sz * b[kz] + w * sz * c[kz]) / det) as f32;
+        let scale = a.abs().max(b.abs()).max(c.abs()).max_element() * sz.abs();
+        if (t.abs() as f64) <= Self::NEAR_ORIGIN_ULPS as f64 * f32::EPSILON as f64 * scale {
+            t = self.plane_distance(ray);
+        }
+        Self::accept(ray, t, (v / det) as f32, (w / det) as f32)
     }
 }
 
@@ -172,6 +233,30 @@ impl Triangle {
         (normal.dot(p0 - ray.origin.as_dvec3()) / normal.dot(direction)) as f32
     }
 }
+
+/// The error bound of an f32 edge function of [`Triangle::intersect`] for the edge `(p, q)`:
+///
+/// ```text
+///   |fl(E) − E| ≤ 8 ε · max(‖p − o‖∞, ‖q − o‖∞) · (|px| + |py| + |qx| + |qy|)
+/// ```
+///
+/// where `E = qx py − qy px` is the edge function of the exactly sheared coordinates and `ε` the
+/// f32 epsilon (2^-23). Each sheared coordinate carries an absolute error of at most about
+/// `5 ε M / 2` (the vertex difference, the shear constant, the product and the subtraction each
+/// round once; `|S| ≤ 1` on the dominant axis), which the products multiply by the other
+/// coordinates; their own rounding adds at most `3 ε M (…) / 2`. The factor 8 leaves a margin of
+/// about 2 over that sum. The bound depends only on the edge's two vertices, so both triangles
+/// of a shared edge agree on whether its f32 sign is certain. [`TrianglePacket::candidates`]
+/// computes the same bound with the same operations.
+///
+/// [`TrianglePacket::candidates`]: crate::bvh::layout
+#[inline]
+pub(crate) fn edge_error(max_component: f32, px: f32, py: f32, qx: f32, qy: f32) -> f32 {
+    (EDGE_ERROR * max_component) * (((px.abs() + py.abs()) + qx.abs()) + qy.abs())
+}
+
+/// `8 ε` of [`edge_error`].
+pub(crate) const EDGE_ERROR: f32 = 8.0 * f32::EPSILON;
 
 #[cfg(test)]
 mod tests {

@@ -198,10 +198,10 @@ impl TrianglePacket {
         Triangle::new(v(0), v(1), v(2))
     }
 
-    /// The lanes that may be hit (bit `i` for lane `i`): those whose edge functions share a sign
-    /// with a nonzero determinant, or have a zero edge function (which the scalar test decides
-    /// in f64). Exactly the first steps of [`Triangle::intersect`], so every lane that test
-    /// accepts is here; the caller runs it on these lanes for the exact answer.
+    /// The lanes that may be hit (bit `i` for lane `i`): all but those whose f32 edge functions
+    /// are certainly of opposite signs (beyond their error bounds, as [`Triangle::intersect`]
+    /// computes them, with the same operations). Every lane that test accepts is here; the
+    /// caller runs it on these lanes for the exact answer.
     #[inline]
     pub fn candidates(&self, ray: &PreparedRay) -> u32 {
         #[cfg(target_arch = "x86_64")]
@@ -217,24 +217,29 @@ impl TrianglePacket {
     /// The scalar definition of [`TrianglePacket::candidates`].
     #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
     pub fn candidates_scalar(&self, ray: &PreparedRay) -> u32 {
+        use crate::geometry::edge_error;
         let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
         let o = ray.origin;
         let mut mask = 0;
         for lane in 0..4 {
+            // (sheared x, sheared y, largest |component| of vertex - origin)
             let sheared = |v: usize| {
                 let x = self.vertices[v][kx][lane] - o[kx];
                 let y = self.vertices[v][ky][lane] - o[ky];
                 let z = self.vertices[v][kz][lane] - o[kz];
-                (x - ray.shear.x * z, y - ray.shear.y * z)
+                let m = x.abs().max(y.abs()).max(z.abs());
+                (x - ray.shear.x * z, y - ray.shear.y * z, m)
             };
-            let ((ax, ay), (bx, by), (cx, cy)) = (sheared(0), sheared(1), sheared(2));
+            let ((ax, ay, ma), (bx, by, mb), (cx, cy, mc)) = (sheared(0), sheared(1), sheared(2));
             let u = cx * by - cy * bx;
             let v = ax * cy - ay * cx;
             let w = bx * ay - by * ax;
-            let zero = u == 0.0 || v == 0.0 || w == 0.0;
-            let mixed = (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0);
-            let candidate = zero || (!mixed && u + v + w != 0.0);
-            mask |= u32::from(candidate) << lane;
+            let eu = edge_error(mb.max(mc), bx, by, cx, cy);
+            let ev = edge_error(mc.max(ma), cx, cy, ax, ay);
+            let ew = edge_error(ma.max(mb), ax, ay, bx, by);
+            let positive = u > eu || v > ev || w > ew;
+            let negative = u < -eu || v < -ev || w < -ew;
+            mask |= u32::from(!(positive && negative)) << lane;
         }
         mask
     }
@@ -242,6 +247,7 @@ impl TrianglePacket {
     #[cfg(target_arch = "x86_64")]
     #[inline]
     fn candidates_sse(&self, ray: &PreparedRay) -> u32 {
+        use crate::geometry::EDGE_ERROR;
         use std::arch::x86_64::*;
         let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
         // SAFETY: SSE2 is part of the x86_64 baseline; each load reads one `[f32; 4]` array of
@@ -252,38 +258,42 @@ impl TrianglePacket {
             let oz = _mm_set1_ps(ray.origin[kz]);
             let sx = _mm_set1_ps(ray.shear.x);
             let sy = _mm_set1_ps(ray.shear.y);
+            let sign_bit = _mm_set1_ps(-0.0);
+            let abs = |x: __m128| _mm_andnot_ps(sign_bit, x);
             let sheared = |v: usize| {
                 let x = _mm_sub_ps(_mm_load_ps(self.vertices[v][kx].as_ptr()), ox);
                 let y = _mm_sub_ps(_mm_load_ps(self.vertices[v][ky].as_ptr()), oy);
                 let z = _mm_sub_ps(_mm_load_ps(self.vertices[v][kz].as_ptr()), oz);
+                let m = _mm_max_ps(_mm_max_ps(abs(x), abs(y)), abs(z));
                 (
                     _mm_sub_ps(x, _mm_mul_ps(sx, z)),
                     _mm_sub_ps(y, _mm_mul_ps(sy, z)),
+                    m,
                 )
             };
-            let ((ax, ay), (bx, by), (cx, cy)) = (sheared(0), sheared(1), sheared(2));
+            let ((ax, ay, ma), (bx, by, mb), (cx, cy, mc)) = (sheared(0), sheared(1), sheared(2));
             let u = _mm_sub_ps(_mm_mul_ps(cx, by), _mm_mul_ps(cy, bx));
             let v = _mm_sub_ps(_mm_mul_ps(ax, cy), _mm_mul_ps(ay, cx));
             let w = _mm_sub_ps(_mm_mul_ps(bx, ay), _mm_mul_ps(by, ax));
-            let zero = _mm_setzero_ps();
-            let any_zero = _mm_or_ps(
-                _mm_or_ps(_mm_cmpeq_ps(u, zero), _mm_cmpeq_ps(v, zero)),
-                _mm_cmpeq_ps(w, zero),
+            let k = _mm_set1_ps(EDGE_ERROR);
+            let bound = |m: __m128, px: __m128, py: __m128, qx: __m128, qy: __m128| {
+                let sum = _mm_add_ps(_mm_add_ps(_mm_add_ps(abs(px), abs(py)), abs(qx)), abs(qy));
+                _mm_mul_ps(_mm_mul_ps(k, m), sum)
+            };
+            let eu = bound(_mm_max_ps(mb, mc), bx, by, cx, cy);
+            let ev = bound(_mm_max_ps(mc, ma), cx, cy, ax, ay);
+            let ew = bound(_mm_max_ps(ma, mb), ax, ay, bx, by);
+            let neg = |e: __m128| _mm_xor_ps(e, sign_bit);
+            let positive = _mm_or_ps(
+                _mm_or_ps(_mm_cmpgt_ps(u, eu), _mm_cmpgt_ps(v, ev)),
+                _mm_cmpgt_ps(w, ew),
             );
-            let any_negative = _mm_or_ps(
-                _mm_or_ps(_mm_cmplt_ps(u, zero), _mm_cmplt_ps(v, zero)),
-                _mm_cmplt_ps(w, zero),
+            let negative = _mm_or_ps(
+                _mm_or_ps(_mm_cmplt_ps(u, neg(eu)), _mm_cmplt_ps(v, neg(ev))),
+                _mm_cmplt_ps(w, neg(ew)),
             );
-            let any_positive = _mm_or_ps(
-                _mm_or_ps(_mm_cmpgt_ps(u, zero), _mm_cmpgt_ps(v, zero)),
-                _mm_cmpgt_ps(w, zero),
-            );
-            let det = _mm_add_ps(_mm_add_ps(u, v), w);
-            let same_sign = _mm_andnot_ps(
-                _mm_and_ps(any_negative, any_positive),
-                _mm_cmpneq_ps(det, zero),
-            );
-            _mm_movemask_ps(_mm_or_ps(any_zero, same_sign)) as u32
+            let rejected = _mm_movemask_ps(_mm_and_ps(positive, negative)) as u32;
+            !rejected & 0xf
         }
     }
 }
