@@ -269,6 +269,18 @@ impl BuildTree {
         }
     }
 
+    /// The triangles of every leaf below `node` (itself included), leaves left to right.
+    pub fn prims_below(&self, node: NodeId) -> Vec<u32> {
+        let mut prims = Vec::new();
+        let mut pending = vec![node];
+        while let Some(id) = pending.pop() {
+            let n = self.node(id);
+            prims.extend_from_slice(n.prims());
+            pending.extend(n.children().iter().rev());
+        }
+        prims
+    }
+
     /// Nodes, leaves, depth and arity of the tree reachable from the root.
     pub fn shape(&self) -> TreeShape {
         let mut s = TreeShape::default();

@@ -155,6 +155,19 @@ pub fn ground_plane(half: f32, height: f32, cells: u32) -> TriangleMesh {
     TriangleMesh::new(positions, faces).expect("plane is valid")
 }
 
+/// Unit right triangles `(c, c + x, c + y)`, one for each corner `c`, in order: small hand-made
+/// scenes for builder tests.
+pub fn unit_triangles_at(corners: &[Vec3]) -> TriangleMesh {
+    let positions = corners
+        .iter()
+        .flat_map(|&c| [c, c + Vec3::X, c + Vec3::Y])
+        .collect();
+    let indices = (0..corners.len() as u32)
+        .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+        .collect();
+    TriangleMesh::new(positions, indices).expect("finite corners give a valid mesh")
+}
+
 /// The built-in scene that `hbv` uses when no mesh is given: a ground plane with a ring of
 /// tori and icospheres of varied size and tessellation, about `detail²` · 8,000 triangles
 /// (`detail = 4` gives 132,480). Objects of different scales and densities, and large

@@ -418,32 +418,13 @@ mod tests {
     use super::*;
     use crate::bvh::build::primitive_bounds;
     use crate::bvh::cost::{sah_cost, SahWeights};
-    use crate::bvh::tree::NodeContent;
+    use crate::mesh::procedural::unit_triangles_at;
     use crate::mesh::procedural::{default_scene, torus};
     use glam::Vec3;
 
-    /// A mesh of unit right triangles, one with its corner at each of `corners`.
-    fn triangles_at(corners: &[Vec3]) -> TriangleMesh {
-        let positions = corners
-            .iter()
-            .flat_map(|&c| [c, c + Vec3::X, c + Vec3::Y])
-            .collect();
-        let indices = (0..corners.len() as u32)
-            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-            .collect();
-        TriangleMesh::new(positions, indices).unwrap()
-    }
-
     fn leaf_sets(tree: &BuildTree, node: u32) -> Vec<u32> {
-        let mut prims = Vec::new();
-        let mut stack = vec![node];
-        while let Some(id) = stack.pop() {
-            match &tree.node(id).content {
-                NodeContent::Internal(c) => stack.extend(c),
-                NodeContent::Leaf(p) => prims.extend(p),
-            }
-        }
-        prims.sort();
+        let mut prims = tree.prims_below(node);
+        prims.sort_unstable();
         prims
     }
 
@@ -460,7 +441,7 @@ mod tests {
             .map(|i| Vec3::new(i as f32 * 0.1, 0.0, 0.0))
             .chain((0..6).map(|i| Vec3::new(100.0 + i as f32 * 0.1, 0.0, 5.0)))
             .collect();
-        let mesh = triangles_at(&corners);
+        let mesh = unit_triangles_at(&corners);
         let tree = builder(16, 4).build(&mesh);
         tree.validate(&primitive_bounds(&mesh), 4).unwrap();
         let root = tree.node(tree.root().unwrap());
@@ -476,7 +457,7 @@ mod tests {
 
     #[test]
     fn one_triangle_is_one_leaf() {
-        let mesh = triangles_at(&[Vec3::ONE]);
+        let mesh = unit_triangles_at(&[Vec3::ONE]);
         let tree = BinnedSahBuilder::default().build(&mesh);
         let root = tree.node(tree.root().unwrap());
         assert_eq!(root.prims(), &[0]);
@@ -487,7 +468,7 @@ mod tests {
     fn identical_triangles_split_by_count_only() {
         // 100 copies of one triangle: no bin boundary separates them, so nodes above the leaf
         // size are halved and the rest become leaves.
-        let mesh = triangles_at(&[Vec3::ZERO; 100]);
+        let mesh = unit_triangles_at(&[Vec3::ZERO; 100]);
         for max_leaf_size in [1, 3, 8] {
             let tree = builder(16, max_leaf_size).build(&mesh);
             tree.validate(&primitive_bounds(&mesh), max_leaf_size)
@@ -562,7 +543,7 @@ mod tests {
             .map(|i| Vec3::new(i as f32 * 0.01, 0.0, 0.0))
             .chain((0..10).map(|i| Vec3::new(1000.0 + i as f32 * 0.01, 0.0, 0.0)))
             .collect();
-        let mesh = triangles_at(&corners);
+        let mesh = unit_triangles_at(&corners);
         let root_split = |root_depth| {
             let tree = builder(16, 4).build_with_root_depth(&mesh, root_depth);
             tree.validate(&primitive_bounds(&mesh), 4).unwrap();

@@ -119,18 +119,8 @@ fn split_position(codes: &[u64]) -> usize {
 mod tests {
     use super::*;
     use crate::bvh::build::primitive_bounds;
+    use crate::mesh::procedural::unit_triangles_at;
     use glam::Vec3;
-
-    fn triangles_at(corners: &[Vec3]) -> TriangleMesh {
-        let positions = corners
-            .iter()
-            .flat_map(|&c| [c, c + Vec3::X, c + Vec3::Y])
-            .collect();
-        let indices = (0..corners.len() as u32)
-            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-            .collect();
-        TriangleMesh::new(positions, indices).unwrap()
-    }
 
     fn lbvh(max_leaf_size: usize) -> LbvhBuilder {
         LbvhBuilder::new(LbvhConfig { max_leaf_size })
@@ -150,7 +140,7 @@ mod tests {
             .map(|i| Vec3::new(i as f32 * 0.1, 0.0, 0.0))
             .chain((0..7).map(|i| Vec3::new(100.0 + i as f32 * 0.1, 0.0, 0.0)))
             .collect();
-        let mesh = triangles_at(&corners);
+        let mesh = unit_triangles_at(&corners);
         let tree = lbvh(2).build(&mesh);
         tree.validate(&primitive_bounds(&mesh), 2).unwrap();
         let root = tree.node(tree.root().unwrap());
@@ -164,11 +154,11 @@ mod tests {
 
     #[test]
     fn one_triangle_identical_triangles_and_leaf_sizes() {
-        let one = triangles_at(&[Vec3::ONE]);
+        let one = unit_triangles_at(&[Vec3::ONE]);
         let tree = LbvhBuilder::default().build(&one);
         assert_eq!(tree.node(tree.root().unwrap()).prims(), &[0]);
 
-        let same = triangles_at(&[Vec3::splat(3.0); 50]);
+        let same = unit_triangles_at(&[Vec3::splat(3.0); 50]);
         for max_leaf_size in [0, 1, 4, 300] {
             let tree = lbvh(max_leaf_size).build(&same);
             tree.validate(&primitive_bounds(&same), max_leaf_size.clamp(1, 255))

@@ -101,18 +101,8 @@ pub(super) fn split_at_object_median(
 mod tests {
     use super::*;
     use crate::bvh::build::primitive_bounds;
+    use crate::mesh::procedural::unit_triangles_at;
     use glam::Vec3;
-
-    fn triangles_at(corners: &[Vec3]) -> TriangleMesh {
-        let positions = corners
-            .iter()
-            .flat_map(|&c| [c, c + Vec3::X, c + Vec3::Y])
-            .collect();
-        let indices = (0..corners.len() as u32)
-            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-            .collect();
-        TriangleMesh::new(positions, indices).unwrap()
-    }
 
     fn median(max_leaf_size: usize) -> MedianBuilder {
         MedianBuilder::new(MedianConfig { max_leaf_size })
@@ -124,7 +114,7 @@ mod tests {
         let corners: Vec<Vec3> = (0..8)
             .map(|i| Vec3::new((i % 3) as f32 * 0.1, 0.0, 10.0 * i as f32))
             .collect();
-        let mesh = triangles_at(&corners);
+        let mesh = unit_triangles_at(&corners);
         let tree = median(2).build(&mesh);
         tree.validate(&primitive_bounds(&mesh), 2).unwrap();
         let root = tree.node(tree.root().unwrap());
@@ -139,11 +129,11 @@ mod tests {
 
     #[test]
     fn one_triangle_and_identical_triangles() {
-        let one = triangles_at(&[Vec3::ONE]);
+        let one = unit_triangles_at(&[Vec3::ONE]);
         let tree = MedianBuilder::default().build(&one);
         assert_eq!(tree.node(tree.root().unwrap()).prims(), &[0]);
 
-        let same = triangles_at(&[Vec3::ZERO; 37]);
+        let same = unit_triangles_at(&[Vec3::ZERO; 37]);
         let tree = median(1).build(&same);
         tree.validate(&primitive_bounds(&same), 1).unwrap();
         assert_eq!(tree.shape().depth_max, 6);
@@ -151,7 +141,7 @@ mod tests {
 
     #[test]
     fn leaf_size_is_clamped_to_one_and_255() {
-        let mesh = triangles_at(&[Vec3::ZERO; 300]);
+        let mesh = unit_triangles_at(&[Vec3::ZERO; 300]);
         median(0)
             .build(&mesh)
             .validate(&primitive_bounds(&mesh), 1)

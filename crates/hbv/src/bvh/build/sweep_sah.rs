@@ -323,26 +323,12 @@ mod tests {
     use super::*;
     use crate::bvh::build::{primitive_bounds, BinnedSahBuilder};
     use crate::bvh::cost::{sah_cost, SahWeights};
+    use crate::mesh::procedural::unit_triangles_at;
     use crate::mesh::procedural::{default_scene, torus};
 
-    fn triangles_at(corners: &[Vec3]) -> TriangleMesh {
-        let positions = corners
-            .iter()
-            .flat_map(|&c| [c, c + Vec3::X, c + Vec3::Y])
-            .collect();
-        let indices = (0..corners.len() as u32)
-            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-            .collect();
-        TriangleMesh::new(positions, indices).unwrap()
-    }
-
     fn leaf_sets(tree: &BuildTree, node: u32) -> Vec<u32> {
-        let mut prims = Vec::new();
-        let mut stack = vec![node];
-        while let Some(id) = stack.pop() {
-            stack.extend(tree.node(id).children());
-            prims.extend(tree.node(id).prims());
-        }
+        let mut prims = tree.prims_below(node);
+        prims.sort_unstable();
         prims
     }
 
@@ -374,7 +360,7 @@ mod tests {
             .map(|i| Vec3::new(0.0, i as f32 * 0.1, 0.0))
             .chain((0..6).map(|i| Vec3::new(0.0, 50.0 + i as f32 * 0.1, 0.0)))
             .collect();
-        let mesh = triangles_at(&corners);
+        let mesh = unit_triangles_at(&corners);
         let tree = sweep(4).build(&mesh);
         tree.validate(&primitive_bounds(&mesh), 4).unwrap();
         let root = tree.node(tree.root().unwrap());
@@ -385,11 +371,11 @@ mod tests {
 
     #[test]
     fn one_triangle_identical_triangles_and_coincident_centroids() {
-        let one = triangles_at(&[Vec3::ONE]);
+        let one = unit_triangles_at(&[Vec3::ONE]);
         let tree = SweepSahBuilder::default().build(&one);
         assert_eq!(tree.node(tree.root().unwrap()).prims(), &[0]);
 
-        let same = triangles_at(&[Vec3::ZERO; 40]);
+        let same = unit_triangles_at(&[Vec3::ZERO; 40]);
         for max_leaf_size in [1, 4] {
             let tree = sweep(max_leaf_size).build(&same);
             tree.validate(&primitive_bounds(&same), max_leaf_size)
@@ -444,7 +430,7 @@ mod tests {
             .map(|i| Vec3::new(i as f32 * 0.01, 0.0, 0.0))
             .chain((0..10).map(|i| Vec3::new(1000.0 + i as f32 * 0.01, 0.0, 0.0)))
             .collect();
-        let mesh = triangles_at(&corners);
+        let mesh = unit_triangles_at(&corners);
         let root_split = |root_depth| {
             let tree = sweep(4).build_with_root_depth(&mesh, root_depth);
             tree.validate(&primitive_bounds(&mesh), 4).unwrap();

@@ -116,13 +116,7 @@ impl<const W: usize> WideLayout<W> {
 
     /// Packs the triangles below binary node `id` into packets and returns the leaf reference.
     fn emit_leaf(&mut self, binary: &BuildTree, mesh: &TriangleMesh, id: NodeId) -> u32 {
-        let mut prims = Vec::new();
-        let mut pending = vec![id];
-        while let Some(n) = pending.pop() {
-            let node = binary.node(n);
-            prims.extend_from_slice(node.prims());
-            pending.extend(node.children().iter().rev());
-        }
+        let prims = binary.prims_below(id);
         assert!(
             prims.len() <= MAX_LEAF_TRIANGLES,
             "a leaf of {} triangles is more than the wide layout's {MAX_LEAF_TRIANGLES}",
