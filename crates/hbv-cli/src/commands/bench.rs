@@ -19,7 +19,7 @@ use hbv_cli::ray_sets::{camera_image_size, RaySet, Stage};
 use rayon::ThreadPool;
 use serde::Serialize;
 
-use super::build_args::{load_mesh, thread_pool, BuildArgs, LayoutName};
+use super::build_args::{load_mesh, thread_pool, BuildArgs, BuilderName, LayoutName};
 
 #[derive(Args)]
 pub struct BenchArgs {
@@ -145,7 +145,8 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
 
     let pools = thread_pools(args.threads)?;
     let all_threads = pools.last().expect("at least one pool");
-    let (tree, build_seconds) = all_threads.install(|| args.build.build(&mesh));
+    let build = args.build.or_builder(BuilderName::BinnedSah);
+    let (tree, build_seconds) = all_threads.install(|| build.build(&mesh));
 
     let mut layouts = Vec::new();
     let mut results = Vec::new();
@@ -158,7 +159,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let report = Report {
         mesh: name,
         triangles: mesh.triangle_count(),
-        builder: args.build.describe(),
+        builder: build.describe(),
         load_seconds,
         build_seconds,
         rays_per_set: args.rays,

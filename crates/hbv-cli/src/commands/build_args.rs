@@ -72,8 +72,10 @@ pub enum OrderName {
 #[derive(Args, Clone, Debug)]
 pub struct BuildArgs {
     /// Tree construction algorithm.
-    #[arg(long, value_enum, default_value_t = BuilderName::Insertion)]
-    pub builder: BuilderName,
+    /// Tree construction algorithm [default: insertion for `info` (the seed's construction),
+    /// binned-sah for `trace` and `bench` (the fastest tree to trace)].
+    #[arg(long, value_enum)]
+    pub builder: Option<BuilderName>,
     /// Insertion order of the insertion builder.
     #[arg(long, value_enum, default_value_t = OrderName::Shuffle)]
     pub order: OrderName,
@@ -93,7 +95,7 @@ impl Default for BuildArgs {
     /// The command line's defaults: shuffled insertion, leaf size 1, no optimization.
     fn default() -> Self {
         Self {
-            builder: BuilderName::Insertion,
+            builder: None,
             order: OrderName::Shuffle,
             seed: 0x5eed,
             optimize: false,
@@ -103,6 +105,19 @@ impl Default for BuildArgs {
 }
 
 impl BuildArgs {
+    /// The builder named, or insertion (the seed's) when none was.
+    pub fn builder_name(&self) -> BuilderName {
+        self.builder.unwrap_or(BuilderName::Insertion)
+    }
+
+    /// These options, with `builder` used when none was named.
+    pub fn or_builder(&self, builder: BuilderName) -> BuildArgs {
+        BuildArgs {
+            builder: Some(self.builder.unwrap_or(builder)),
+            ..self.clone()
+        }
+    }
+
     pub fn insertion_config(&self) -> InsertionConfig {
         InsertionConfig {
             order: match self.order {
@@ -117,7 +132,7 @@ impl BuildArgs {
     /// The builder these options name.
     pub fn builder(&self) -> Box<dyn Builder> {
         let leaf = |default: usize| self.leaf_size.map_or(default, |k| k as usize);
-        match self.builder {
+        match self.builder_name() {
             BuilderName::Insertion => Box::new(InsertionBuilder::new(self.insertion_config())),
             BuilderName::BinnedSah => {
                 let mut config = BinnedSahConfig::default();
@@ -149,7 +164,7 @@ impl BuildArgs {
     /// [`BuildArgs::build`] with the details of the work done.
     pub fn build_with_report(&self, mesh: &TriangleMesh) -> BuildReport {
         let start = Instant::now();
-        let (mut tree, search_nodes_per_insertion) = match self.builder {
+        let (mut tree, search_nodes_per_insertion) = match self.builder_name() {
             BuilderName::Insertion => {
                 InsertionBuilder::new(self.insertion_config()).build_with_report(mesh)
             }
@@ -173,7 +188,7 @@ impl BuildArgs {
         let leaf = self
             .leaf_size
             .map_or("default".to_string(), |k| k.to_string());
-        let built = match self.builder {
+        let built = match self.builder_name() {
             BuilderName::Insertion => {
                 let order = match self.order {
                     OrderName::Shuffle => format!("shuffle, seed {}", self.seed),

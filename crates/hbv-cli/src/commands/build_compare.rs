@@ -86,7 +86,7 @@ pub fn run(args: &BuildCompareArgs) -> anyhow::Result<()> {
                 continue;
             }
             let options = BuildArgs {
-                builder,
+                builder: Some(builder),
                 optimize,
                 ..BuildArgs::default()
             };

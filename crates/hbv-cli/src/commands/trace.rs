@@ -8,7 +8,7 @@ use clap::Args;
 use hbv_cli::{hit_file, ray_file};
 use serde_json::json;
 
-use super::build_args::{load_mesh, thread_pool, BuildArgs, LayoutName};
+use super::build_args::{load_mesh, thread_pool, BuildArgs, BuilderName, LayoutName};
 
 #[derive(Args)]
 pub struct TraceArgs {
@@ -40,7 +40,8 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     let pool = thread_pool(args.threads)?;
     let (mesh, _, load_seconds) = load_mesh(Some(&args.mesh))?;
     let rays = ray_file::read_rays(&args.rays).context("cannot read rays")?;
-    let (tree, build_seconds) = pool.install(|| args.build.build(&mesh));
+    let build = args.build.or_builder(BuilderName::BinnedSah);
+    let (tree, build_seconds) = pool.install(|| build.build(&mesh));
     let accel = args.layout.lay_out(&tree, &mesh);
 
     let start = Instant::now();
@@ -88,7 +89,7 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
             mesh.triangle_count()
         );
         println!("load      {load_seconds:.3} s");
-        println!("build     {build_seconds:.3} s ({})", args.build.describe());
+        println!("build     {build_seconds:.3} s ({})", build.describe());
         println!("trace     {trace_seconds:.3} s, {} rays ({query}), {hit_count} hit, {:.3} Mrays/s on {} threads", rays.len(), rays_per_second / 1e6, pool.current_num_threads());
         println!("wrote     {}", args.out.display());
     }
