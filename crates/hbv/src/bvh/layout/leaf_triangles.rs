@@ -2,7 +2,7 @@
 //! scalar layouts.
 
 use crate::bvh::tree::{BuildTree, NodeId};
-use crate::geometry::{PreparedRay, Triangle};
+use crate::geometry::{PreparedRay, Ray, Triangle};
 use crate::mesh::TriangleMesh;
 use crate::query::{record_closer_hit, Hit};
 use crate::stats::Counter;
@@ -76,4 +76,51 @@ impl LeafTriangles {
             i += 1;
         }
     }
+}
+
+/// A layout that keeps its triangles in [`LeafTriangles`] and reaches them through a traversal
+/// loop calling `visit_leaf(first_triangle, ray, counter)` for each leaf whose box the ray hits
+/// (stopping when it returns `true`). Both queries follow from that: see
+/// [`closest_hit_in_leaves`] and [`any_hit_in_leaves`].
+pub(crate) trait LeafVisitingLayout {
+    fn leaves(&self) -> &LeafTriangles;
+
+    fn traverse<C: Counter>(
+        &self,
+        ray: &mut PreparedRay,
+        counter: &mut C,
+        visit_leaf: impl FnMut(u32, &mut PreparedRay, &mut C) -> bool,
+    );
+}
+
+/// The closest hit through a [`LeafVisitingLayout`]: every reached leaf may shrink `tmax`.
+#[inline]
+pub(crate) fn closest_hit_in_leaves<L: LeafVisitingLayout, C: Counter>(
+    layout: &L,
+    ray: &Ray,
+    counter: &mut C,
+) -> Option<Hit> {
+    let mut prepared = PreparedRay::new(ray);
+    let mut best = None;
+    layout.traverse(&mut prepared, counter, |first, ray, counter| {
+        layout.leaves().closest_hit(first, ray, &mut best, counter);
+        false
+    });
+    best
+}
+
+/// Any hit through a [`LeafVisitingLayout`]: the first leaf with a hit ends the traversal.
+#[inline]
+pub(crate) fn any_hit_in_leaves<L: LeafVisitingLayout, C: Counter>(
+    layout: &L,
+    ray: &Ray,
+    counter: &mut C,
+) -> bool {
+    let mut prepared = PreparedRay::new(ray);
+    let mut found = false;
+    layout.traverse(&mut prepared, counter, |first, ray, counter| {
+        found = layout.leaves().any_hit(first, ray, counter);
+        found
+    });
+    found
 }

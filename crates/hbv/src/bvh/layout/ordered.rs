@@ -1,7 +1,9 @@
 //! A binary tree with sibling nodes side by side, traversed nearest child first with a stack.
 
 use super::binarize::binarize;
-use super::leaf_triangles::LeafTriangles;
+use super::leaf_triangles::{
+    any_hit_in_leaves, closest_hit_in_leaves, LeafTriangles, LeafVisitingLayout,
+};
 use super::stack::TraversalStack;
 use crate::bvh::tree::{BuildTree, NodeContent, NodeId};
 use crate::geometry::{Aabb, PreparedRay, Ray};
@@ -84,6 +86,12 @@ impl OrderedLayout {
     pub fn memory_bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<OrderedNode>() + self.leaves.memory_bytes()
     }
+}
+
+impl LeafVisitingLayout for OrderedLayout {
+    fn leaves(&self) -> &LeafTriangles {
+        &self.leaves
+    }
 
     /// Nearest-first traversal; `visit_leaf` returns `true` to stop.
     #[inline]
@@ -147,22 +155,10 @@ impl OrderedLayout {
 
 impl TraversalKernel for OrderedLayout {
     fn closest_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
-        let mut prepared = PreparedRay::new(ray);
-        let mut best = None;
-        self.traverse(&mut prepared, counter, |first, ray, counter| {
-            self.leaves.closest_hit(first, ray, &mut best, counter);
-            false
-        });
-        best
+        closest_hit_in_leaves(self, ray, counter)
     }
 
     fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
-        let mut prepared = PreparedRay::new(ray);
-        let mut found = false;
-        self.traverse(&mut prepared, counter, |first, ray, counter| {
-            found = self.leaves.any_hit(first, ray, counter);
-            found
-        });
-        found
+        any_hit_in_leaves(self, ray, counter)
     }
 }

@@ -1,6 +1,8 @@
 //! The seed's layout: the tree in depth-first order with skip pointers, traversed without a stack.
 
-use super::leaf_triangles::LeafTriangles;
+use super::leaf_triangles::{
+    any_hit_in_leaves, closest_hit_in_leaves, LeafTriangles, LeafVisitingLayout,
+};
 use crate::bvh::tree::BuildTree;
 use crate::geometry::{Aabb, PreparedRay, Ray};
 use crate::mesh::TriangleMesh;
@@ -74,6 +76,12 @@ impl SkipLayout {
     pub fn memory_bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<SkipNode>() + self.leaves.memory_bytes()
     }
+}
+
+impl LeafVisitingLayout for SkipLayout {
+    fn leaves(&self) -> &LeafTriangles {
+        &self.leaves
+    }
 
     /// The stackless loop; `visit_leaf` returns `true` to stop.
     #[inline]
@@ -105,22 +113,10 @@ impl SkipLayout {
 
 impl TraversalKernel for SkipLayout {
     fn closest_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
-        let mut prepared = PreparedRay::new(ray);
-        let mut best = None;
-        self.traverse(&mut prepared, counter, |first, ray, counter| {
-            self.leaves.closest_hit(first, ray, &mut best, counter);
-            false
-        });
-        best
+        closest_hit_in_leaves(self, ray, counter)
     }
 
     fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
-        let mut prepared = PreparedRay::new(ray);
-        let mut found = false;
-        self.traverse(&mut prepared, counter, |first, ray, counter| {
-            found = self.leaves.any_hit(first, ray, counter);
-            found
-        });
-        found
+        any_hit_in_leaves(self, ray, counter)
     }
 }

@@ -2,7 +2,7 @@
 
 use super::binarize::binarize;
 use super::stack::TraversalStack;
-use super::wide_kernels::{BoxRay, LaneBoxes, TrianglePacket};
+use super::wide_kernels::{BoxRay, LaneBoxes, Lanes, TrianglePacket};
 use crate::bvh::tree::{BuildTree, NodeContent, NodeId};
 use crate::geometry::{Aabb, PreparedRay, Ray};
 use crate::mesh::TriangleMesh;
@@ -166,41 +166,30 @@ impl<const W: usize> WideLayout<W> {
                 }
             } else {
                 counter.boxes_tested(W as u32);
-                let (mut mask, entry) = K::test(
+                let (mask, entry) = K::test(
                     &self.nodes[current as usize].boxes,
                     &box_ray,
                     ray.tmin,
                     ray.tmax,
                 );
                 let children = &self.nodes[current as usize].children;
-                if mask != 0 {
-                    // Push the hit children farthest first, so the nearest is popped next.
-                    let hits = mask.count_ones() as usize;
-                    if hits == 1 {
-                        let lane = mask.trailing_zeros() as usize;
-                        current = children[lane];
-                        continue;
-                    }
+                let mut hits = Lanes(mask);
+                if let Some(first) = hits.next() {
                     if !NEAREST_FIRST {
                         // Any hit: every hit child must be searched anyway and the first hit
                         // found ends the query, so skip the sort.
-                        let lane = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        while mask != 0 {
-                            let other = mask.trailing_zeros() as usize;
-                            mask &= mask - 1;
-                            self.prefetch(children[other]);
-                            stack.push((children[other], entry[other]));
+                        for lane in hits {
+                            self.prefetch(children[lane]);
+                            stack.push((children[lane], entry[lane]));
                         }
-                        current = children[lane];
+                        current = children[first];
                         continue;
                     }
+                    // Push the hit children farthest first, so the nearest is visited next:
+                    // insertion sort by decreasing entry distance (at most 8 entries).
                     let mut order = [(0u32, 0.0f32); W];
                     let mut n = 0;
-                    while mask != 0 {
-                        let lane = mask.trailing_zeros() as usize;
-                        mask &= mask - 1;
-                        // Insertion sort by decreasing entry distance (at most 8 entries).
+                    for lane in Lanes(mask) {
                         let item = (children[lane], entry[lane]);
                         let mut k = n;
                         while k > 0 && order[k - 1].1 < item.1 {
@@ -392,10 +381,7 @@ impl<const W: usize> WideLayout<W> {
         self.traverse::<C, K, true>(&mut prepared, counter, |first, count, ray, counter| {
             for packet in &self.packets[first..first + count] {
                 counter.triangles_tested(4);
-                let mut candidates = packet.candidates(ray);
-                while candidates != 0 {
-                    let lane = candidates.trailing_zeros() as usize;
-                    candidates &= candidates - 1;
+                for lane in packet.candidate_lanes(ray) {
                     record_closer_hit(&packet.triangle(lane), packet.ids[lane], ray, &mut best);
                 }
             }
@@ -409,19 +395,13 @@ impl<const W: usize> WideLayout<W> {
         let mut prepared = PreparedRay::new(ray);
         let mut found = false;
         self.traverse::<C, K, false>(&mut prepared, counter, |first, count, ray, counter| {
-            for packet in &self.packets[first..first + count] {
+            found = self.packets[first..first + count].iter().any(|packet| {
                 counter.triangles_tested(4);
-                let mut candidates = packet.candidates(ray);
-                while candidates != 0 {
-                    let lane = candidates.trailing_zeros() as usize;
-                    candidates &= candidates - 1;
-                    if packet.triangle(lane).intersect(ray).is_some() {
-                        found = true;
-                        return true;
-                    }
-                }
-            }
-            false
+                packet
+                    .candidate_lanes(ray)
+                    .any(|lane| packet.triangle(lane).intersect(ray).is_some())
+            });
+            found
         });
         found
     }

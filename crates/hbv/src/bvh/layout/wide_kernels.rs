@@ -158,6 +158,24 @@ pub(crate) unsafe fn boxes_avx(
     }
 }
 
+/// The set bits of a lane mask, lowest first. Holds only the mask, so the ray it came from may be
+/// changed (its `tmax` shrunk) while the lanes are visited.
+pub(crate) struct Lanes(pub u32);
+
+impl Iterator for Lanes {
+    type Item = usize;
+
+    #[inline]
+    fn next(&mut self) -> Option<usize> {
+        if self.0 == 0 {
+            return None;
+        }
+        let lane = self.0.trailing_zeros() as usize;
+        self.0 &= self.0 - 1;
+        Some(lane)
+    }
+}
+
 /// Four triangles, structure of arrays: `vertices[vertex][axis][lane]`, with their face ids.
 /// A leaf whose count is not a multiple of 4 repeats its last triangle in the spare lanes.
 #[derive(Clone, Copy, Debug)]
@@ -212,6 +230,12 @@ impl TrianglePacket {
         {
             self.candidates_scalar(ray)
         }
+    }
+
+    /// The lanes of [`TrianglePacket::candidates`], lowest first.
+    #[inline]
+    pub fn candidate_lanes(&self, ray: &PreparedRay) -> Lanes {
+        Lanes(self.candidates(ray))
     }
 
     /// The scalar definition of [`TrianglePacket::candidates`].
