@@ -10,9 +10,12 @@ use hbv::bvh::build::{
 use hbv::bvh::layout::RecursiveLayout;
 use hbv::bvh::{sah_cost, BuildTree, NodeContent, SahWeights};
 use hbv::geometry::{Aabb, Ray};
-use hbv::mesh::procedural::{default_scene, torus};
+use hbv::mesh::procedural::default_scene;
 use hbv::{Accelerator, BruteForce, TriangleMesh};
 use proptest::prelude::*;
+
+mod common;
+use common::{closed_mesh, mesh_and_rays, soup};
 
 /// A builder under test with its options, and the leaf size its trees must respect.
 #[derive(Clone, Debug)]
@@ -71,100 +74,6 @@ fn builder_under_test() -> impl Strategy<Value = BuilderUnderTest> {
             .prop_map(|max_leaf_size| BuilderUnderTest::Median(MedianConfig { max_leaf_size })),
         (1usize..=8).prop_map(|max_leaf_size| BuilderUnderTest::Lbvh(LbvhConfig { max_leaf_size })),
     ]
-}
-
-/// A coordinate scale: tiny, unit, large and huge scenes.
-fn scale() -> impl Strategy<Value = f32> {
-    prop_oneof![Just(1e-4f32), Just(1.0), Just(1e3), Just(1e6)]
-}
-
-fn point(s: f32) -> impl Strategy<Value = Vec3> {
-    (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0).prop_map(move |(x, y, z)| Vec3::new(x, y, z) * s)
-}
-
-/// A triangle soup with slivers, degenerate (collinear, coincident), duplicated and huge
-/// triangles mixed in.
-fn soup() -> impl Strategy<Value = TriangleMesh> {
-    scale().prop_flat_map(|s| {
-        let tri = prop_oneof![
-            6 => (point(s), point(s), point(s)).prop_map(|(a, b, c)| [a, b, c]),
-            // Small triangle around a point.
-            3 => (point(s), point(s * 0.05), point(s * 0.05)).prop_map(|(a, b, c)| [a, a + b, a + c]),
-            // Sliver: third vertex almost on the first edge.
-            1 => (point(s), point(s), 0.0f32..1.0).prop_map(|(a, b, k)| [a, b, a + (b - a) * k + Vec3::splat(1e-6)]),
-            // Degenerate: collinear or coincident.
-            1 => (point(s), point(s)).prop_map(|(a, b)| [a, b, a + (b - a) * 0.5]),
-            1 => point(s).prop_map(|a| [a, a, a]),
-            // The same triangle every time: many coincident centroids.
-            1 => Just([Vec3::ZERO, Vec3::X * s, Vec3::Y * s]),
-            // Huge: much larger than the scene.
-            1 => (point(s * 100.0), point(s * 100.0), point(s * 100.0)).prop_map(|(a, b, c)| [a, b, c]),
-        ];
-        prop::collection::vec(tri, 1..120).prop_map(|tris| {
-            let positions: Vec<Vec3> = tris.iter().flatten().copied().collect();
-            let indices = (0..tris.len() as u32)
-                .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-                .collect();
-            TriangleMesh::new(positions, indices).unwrap()
-        })
-    })
-}
-
-/// A closed torus with shared edges, randomly sized and placed.
-fn closed_mesh() -> impl Strategy<Value = TriangleMesh> {
-    (scale(), 3u32..24, 3u32..12, point(1.0))
-        .prop_map(|(s, m, n, c)| torus(c * s, 2.0 * s, 0.7 * s, m, n))
-}
-
-/// A ray aimed at the mesh: from inside its box in any or an axis direction, from outside at
-/// the box, from a point on a triangle, or a finite segment.
-fn ray_for(mesh: &TriangleMesh) -> impl Strategy<Value = Ray> {
-    let b = mesh.bounds();
-    let (lo, hi) = (b.min, b.max);
-    let ext = (hi - lo).max_element().max(1e-30);
-    let n = mesh.triangle_count();
-    let inside = move || {
-        (0.0f32..1.0, 0.0f32..1.0, 0.0f32..1.0)
-            .prop_map(move |(x, y, z)| lo + (hi - lo) * Vec3::new(x, y, z))
-    };
-    let dir = || point(1.0).prop_filter("nonzero", |d| d.length() > 1e-3);
-    let axis = || {
-        (0usize..3, any::<bool>()).prop_map(|(k, neg)| {
-            let mut d = Vec3::ZERO;
-            d[k] = if neg { -1.0 } else { 1.0 };
-            d
-        })
-    };
-    let mesh = mesh.clone();
-    let on_surface = (0..n, 0.0f32..1.0, 0.0f32..1.0).prop_map(move |(i, a, b)| {
-        let t = mesh.triangle(i);
-        let (a, b) = if a + b > 1.0 {
-            (1.0 - a, 1.0 - b)
-        } else {
-            (a, b)
-        };
-        t.p0 + (t.p1 - t.p0) * a + (t.p2 - t.p0) * b
-    });
-    prop_oneof![
-        (inside(), dir()).prop_map(|(o, d)| Ray::new(o, d)),
-        (inside(), axis()).prop_map(|(o, d)| Ray::new(o, d)),
-        (point(1.0), inside(), 0.01f32..100.0).prop_map(move |(o, target, k)| {
-            let o = (lo + hi) * 0.5 + o.normalize_or(Vec3::X) * 3.0 * ext;
-            Ray::new(o, (target - o) * k / ext)
-        }),
-        (on_surface, dir()).prop_map(|(o, d)| Ray::new(o, d)),
-        (inside(), dir(), 0.0f32..1.0, 0.0f32..2.0)
-            .prop_map(move |(o, d, a, len)| Ray::new(o, d).with_interval(a * ext, (a + len) * ext)),
-    ]
-}
-
-fn mesh_and_rays(
-    mesh: impl Strategy<Value = TriangleMesh>,
-) -> impl Strategy<Value = (TriangleMesh, Vec<Ray>)> {
-    mesh.prop_flat_map(|m| {
-        let rays = prop::collection::vec(ray_for(&m), 1..48);
-        (Just(m), rays)
-    })
 }
 
 /// Checks the tree invariants, that the tree is binary with tight boxes, and that its recursive

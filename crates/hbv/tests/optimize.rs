@@ -13,8 +13,11 @@ use hbv::bvh::placement::TreeCost;
 use hbv::bvh::{expected_tests, sah_cost, BuildTree, SahWeights};
 use hbv::geometry::{Aabb, Ray};
 use hbv::mesh::procedural::{default_scene, icosphere, torus};
-use hbv::{Accelerator, BruteForce, TriangleMesh};
+use hbv::TriangleMesh;
 use proptest::prelude::*;
+
+mod common;
+use common::{assert_agrees, closed_mesh, mesh_and_rays, order, soup};
 
 fn insertion_tree(mesh: &TriangleMesh, order: InsertionOrder, max_leaf_size: usize) -> BuildTree {
     InsertionBuilder::new(InsertionConfig {
@@ -88,77 +91,13 @@ fn optimize_checking_every_pass(
     Ok(())
 }
 
-/// Asserts that the layout of `tree` answers every ray as brute force does: the same closest
-/// `t` (and the same triangle, unless two are hit at exactly that `t`), the same any-hit.
-fn assert_agrees(mesh: &TriangleMesh, tree: &BuildTree, rays: &[Ray]) -> Result<(), TestCaseError> {
-    let reference = BruteForce::new(mesh);
-    let bvh = RecursiveLayout::new(tree, mesh);
-    for (i, ray) in rays.iter().enumerate() {
-        match (reference.intersect(ray), bvh.intersect(ray)) {
-            (None, None) => {}
-            (Some(w), Some(g)) => {
-                let rel = (w.t - g.t).abs() / w.t.abs().max(1e-30);
-                prop_assert!(rel <= 1e-6, "ray {} {:?}: {:?} vs {:?}", i, ray, w, g);
-                if w.prim != g.prim {
-                    prop_assert_eq!(w.t, g.t, "ray {} {:?}: {:?} vs {:?}", i, ray, w, g);
-                }
-            }
-            (w, g) => prop_assert!(false, "ray {i} {ray:?}: brute force {w:?}, BVH {g:?}"),
-        }
-        prop_assert_eq!(
-            reference.occluded(ray),
-            bvh.occluded(ray),
-            "any hit, ray {}",
-            i
-        );
-    }
-    Ok(())
-}
-
-fn point(s: f32) -> impl Strategy<Value = Vec3> {
-    (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0).prop_map(move |(x, y, z)| Vec3::new(x, y, z) * s)
-}
-
-/// A triangle soup: large, small, sliver and degenerate triangles.
-fn soup() -> impl Strategy<Value = TriangleMesh> {
-    let tri = prop_oneof![
-        4 => (point(1.0), point(1.0), point(1.0)).prop_map(|(a, b, c)| [a, b, c]),
-        4 => (point(1.0), point(0.05), point(0.05)).prop_map(|(a, b, c)| [a, a + b, a + c]),
-        1 => (point(1.0), point(1.0), 0.0f32..1.0)
-            .prop_map(|(a, b, k)| [a, b, a + (b - a) * k + Vec3::splat(1e-6)]),
-        1 => point(1.0).prop_map(|a| [a, a, a]),
-    ];
-    prop::collection::vec(tri, 1..150).prop_map(|tris| {
-        let positions: Vec<Vec3> = tris.iter().flatten().copied().collect();
-        let indices = (0..tris.len() as u32)
-            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
-            .collect();
-        TriangleMesh::new(positions, indices).unwrap()
-    })
-}
-
-/// A closed torus, randomly tessellated and placed.
-fn closed_mesh() -> impl Strategy<Value = TriangleMesh> {
-    (3u32..32, 3u32..16, point(2.0)).prop_map(|(m, n, c)| torus(c, 2.0, 0.7, m, n))
-}
-
-/// Rays from inside the mesh's box in any direction, and from outside aimed into it.
-fn rays_for(mesh: &TriangleMesh) -> impl Strategy<Value = Vec<Ray>> {
-    let b = mesh.bounds();
-    let (lo, hi) = (b.min, b.max);
-    let inside = move || {
-        (0.0f32..1.0, 0.0f32..1.0, 0.0f32..1.0)
-            .prop_map(move |(x, y, z)| lo + (hi - lo) * Vec3::new(x, y, z))
-    };
-    let dir = || point(1.0).prop_filter("nonzero", |d| d.length() > 1e-3);
-    let ray = prop_oneof![
-        (inside(), dir()).prop_map(|(o, d)| Ray::new(o, d)),
-        (dir(), inside()).prop_map(move |(o, target)| {
-            let o = (lo + hi) * 0.5 + o.normalize() * 3.0 * (hi - lo).max_element();
-            Ray::new(o, target - o)
-        }),
-    ];
-    prop::collection::vec(ray, 1..48)
+/// Asserts that the layout of `tree` answers every ray as brute force does.
+fn assert_tree_agrees(
+    mesh: &TriangleMesh,
+    tree: &BuildTree,
+    rays: &[Ray],
+) -> Result<(), TestCaseError> {
+    assert_agrees(mesh, &RecursiveLayout::new(tree, mesh), rays)
 }
 
 fn objective() -> impl Strategy<Value = TreeCost> {
@@ -172,23 +111,6 @@ fn objective() -> impl Strategy<Value = TreeCost> {
     ]
 }
 
-fn order() -> impl Strategy<Value = InsertionOrder> {
-    prop_oneof![
-        Just(InsertionOrder::Input),
-        Just(InsertionOrder::Morton),
-        any::<u64>().prop_map(|seed| InsertionOrder::Shuffle { seed }),
-    ]
-}
-
-fn mesh_and_rays(
-    mesh: impl Strategy<Value = TriangleMesh>,
-) -> impl Strategy<Value = (TriangleMesh, Vec<Ray>)> {
-    mesh.prop_flat_map(|m| {
-        let rays = rays_for(&m);
-        (Just(m), rays)
-    })
-}
-
 /// Optimizes, checking every pass, then collapses, checking again, then compares with brute
 /// force: the property every optimized tree must have.
 fn optimize_collapse_and_trace(
@@ -200,7 +122,7 @@ fn optimize_collapse_and_trace(
     rays: &[Ray],
 ) -> Result<(), TestCaseError> {
     optimize_checking_every_pass(&mut tree, mesh, leaf, config, 4)?;
-    assert_agrees(mesh, &tree, rays)?;
+    assert_tree_agrees(mesh, &tree, rays)?;
 
     let collapse = CollapseConfig {
         max_leaf_size: collapse_to,
@@ -215,7 +137,7 @@ fn optimize_collapse_and_trace(
     }
     tree.compact();
     prop_assert_eq!(tree.nodes().len(), tree.shape().nodes);
-    assert_agrees(mesh, &tree, rays)
+    assert_tree_agrees(mesh, &tree, rays)
 }
 
 proptest! {
