@@ -9,7 +9,7 @@ use hbv::{Accelerator, BruteForce, TriangleMesh};
 use proptest::prelude::*;
 
 mod common;
-use common::{assert_agrees, closed_mesh, mesh_and_rays, order, soup};
+use common::{assert_agrees, closed_mesh, mesh_and_coherent_rays, mesh_and_rays, order, soup};
 
 /// Every layout of the tree built with the given insertion options, by name.
 fn layouts(
@@ -56,6 +56,18 @@ proptest! {
     #[test]
     fn closed_mesh_closest_and_any_hit_equal_brute_force((mesh, rays) in mesh_and_rays(closed_mesh()), order in order(), leaf in 1usize..5) {
         assert_all_layouts_agree(&mesh, order, leaf, &rays)?;
+    }
+
+    /// The packet path of `intersect_coherent` answers exactly what single rays answer (which
+    /// the tests above compare with brute force), on every layout.
+    #[test]
+    fn coherent_packets_answer_like_single_rays((mesh, rays) in mesh_and_coherent_rays(prop_oneof![soup(), closed_mesh()]), order in order(), leaf in 1usize..5) {
+        for (name, accel) in layouts(&mesh, order, leaf) {
+            let single: Vec<_> = rays.iter().map(|r| accel.intersect(r)).collect();
+            prop_assert_eq!(&accel.intersect_coherent(&rays), &single, "{}", name);
+            let mut stats = hbv::TraversalStats::default();
+            prop_assert_eq!(&accel.intersect_coherent_counted(&rays, &mut stats), &single, "{} (counted)", name);
+        }
     }
 
     #[test]

@@ -23,6 +23,10 @@ pub struct TraceArgs {
     /// Any-hit query: write `occluded` instead of closest hits.
     #[arg(long)]
     pub occluded: bool,
+    /// The rays are coherent (camera rays in pixel order): trace closest hits in packets of
+    /// consecutive rays. Same answers, faster on such rays, slower on scattered ones.
+    #[arg(long, conflicts_with = "occluded")]
+    pub coherent: bool,
     /// Worker threads; 0 uses every core.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
@@ -51,7 +55,11 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         hit_file::write_occlusion(&args.out, &occluded).context("cannot write hits")?;
         (occluded.iter().filter(|&&o| o).count(), trace_seconds)
     } else {
-        let hits = pool.install(|| accel.intersect_batch(&rays));
+        let hits = if args.coherent {
+            pool.install(|| accel.intersect_coherent(&rays))
+        } else {
+            pool.install(|| accel.intersect_batch(&rays))
+        };
         let trace_seconds = start.elapsed().as_secs_f64();
         hit_file::write_hits(&args.out, &hits).context("cannot write hits")?;
         (hits.iter().filter(|h| h.is_some()).count(), trace_seconds)

@@ -175,3 +175,51 @@ pub fn mesh_and_rays(
         (Just(m), rays)
     })
 }
+
+/// Packets of coherent rays, as camera rays are: [`PACKET_SIZE`](hbv::query::PACKET_SIZE)-ray
+/// groups from one origin (or origins a hair apart) with directions a small random angle around
+/// an adversarial base direction (random, along an axis, with zero components), some with finite
+/// intervals, some invalid. Consecutive groups are independent.
+pub fn coherent_rays_for(mesh: &TriangleMesh) -> impl Strategy<Value = Vec<Ray>> {
+    let packet_size = hbv::query::PACKET_SIZE;
+    let single = ray_for(mesh);
+    let spread = prop_oneof![Just(0.0f32), 1e-6f32..1e-3, 1e-3f32..0.2];
+    let b = mesh.bounds();
+    let ext = (b.max - b.min).max_element().max(1e-30);
+    let packet = (
+        single,
+        spread,
+        any::<bool>(),
+        prop::collection::vec((point(1.0), point(1.0), 0u8..16), packet_size),
+    )
+        .prop_map(move |(base, spread, shift_origins, jitter)| {
+            jitter
+                .into_iter()
+                .map(|(dj, oj, kind)| {
+                    let mut ray = base;
+                    ray.direction += dj * spread * base.direction.length();
+                    if shift_origins {
+                        ray.origin += oj * 1e-4 * ext;
+                    }
+                    match kind {
+                        0 => ray.direction = Vec3::ZERO,
+                        1 => ray.tmax = ray.tmin,
+                        2 => ray.tmax = 0.5 * ext,
+                        _ => {}
+                    }
+                    ray
+                })
+                .collect::<Vec<_>>()
+        });
+    prop::collection::vec(packet, 1..6).prop_map(|packets| packets.concat())
+}
+
+/// A mesh with coherent packets of rays; see [`coherent_rays_for`].
+pub fn mesh_and_coherent_rays(
+    mesh: impl Strategy<Value = TriangleMesh>,
+) -> impl Strategy<Value = (TriangleMesh, Vec<Ray>)> {
+    mesh.prop_flat_map(|m| {
+        let rays = coherent_rays_for(&m);
+        (Just(m), rays)
+    })
+}

@@ -1,5 +1,7 @@
 //! Wide nodes: 4 or 8 children per node, their boxes tested together with SIMD.
 
+mod packet;
+
 use super::binarize::binarize;
 use super::stack::TraversalStack;
 use super::wide_kernels::{BoxRay, LaneBoxes, Lanes, TrianglePacket};
@@ -438,5 +440,14 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
             return unsafe { self.any_hit_avx(ray, counter) };
         }
         self.any_hit_with::<C, DefaultBoxes>(ray, counter)
+    }
+
+    fn closest_hit_packet<C: Counter>(
+        &self,
+        rays: &[Ray],
+        hits: &mut [Option<Hit>],
+        counter: &mut C,
+    ) {
+        self.closest_hit_packet_dispatch(rays, hits, counter)
     }
 }
