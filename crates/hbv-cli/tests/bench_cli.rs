@@ -27,8 +27,9 @@ fn hbv(args: &[&str]) -> Output {
 const LAYOUTS: [&str; 5] = ["recursive", "skip", "ordered", "wide4", "wide8"];
 
 /// (ray set, query) pairs measured for every layout.
-const CASES: [(&str, &str); 4] = [
+const CASES: [(&str, &str); 5] = [
     ("primary", "closest"),
+    ("primary", "packets"),
     ("diffuse", "closest"),
     ("diffuse", "occluded"),
     ("shadow", "occluded"),
