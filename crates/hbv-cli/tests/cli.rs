@@ -135,6 +135,20 @@ fn assert_trace_matches_brute_force(
     }
     let occluded = hit_file::read_occlusion(&occ_path).unwrap();
     assert_eq!(occluded, brute.occluded_batch(rays));
+
+    // Packets of coherent rays give the same answers, whatever the rays.
+    let coherent_path = dir.join("coherent.npz");
+    let out = hbv(&[
+        "trace",
+        m,
+        "--rays",
+        r,
+        "--out",
+        coherent_path.to_str().unwrap(),
+        "--coherent",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(hit_file::read_hits(&coherent_path).unwrap(), got);
 }
 
 #[test]
