@@ -121,3 +121,26 @@ fn empty_and_all_degenerate_meshes_never_hit() {
         }
     }
 }
+
+/// Builders make leaves of up to 255 triangles; the wide layouts hold at most 64 per leaf and
+/// split larger ones under a node of their own, answering as before.
+#[test]
+fn wide_layouts_take_leaves_larger_than_theirs() {
+    use hbv::bvh::build::{MedianBuilder, MedianConfig};
+    let mesh = torus(Vec3::new(0.3, -0.2, 0.1), 2.0, 0.6, 40, 15);
+    let tree = MedianBuilder::new(MedianConfig { max_leaf_size: 255 }).build(&mesh);
+    let rays: Vec<Ray> = (0..400)
+        .map(|k| {
+            let a = k as f32 * 0.37;
+            Ray::new(
+                Vec3::new(5.0 * a.cos(), 0.9 * (k as f32 * 0.11).sin(), 5.0 * a.sin()),
+                Vec3::new(-a.cos(), 0.05 * (k as f32).cos(), -a.sin() + 0.2),
+            )
+        })
+        .collect();
+    let wide4 = Wide4Layout::new(&tree, &mesh);
+    let wide8 = Wide8Layout::new(&tree, &mesh);
+    assert_agrees(&mesh, &wide4, &rays).unwrap();
+    assert_agrees(&mesh, &wide8, &rays).unwrap();
+    assert!(rays.iter().filter(|r| wide8.intersect(r).is_some()).count() > 100);
+}
