@@ -2,6 +2,7 @@
 
 pub mod build;
 pub mod cost;
+pub mod dynamic;
 pub mod layout;
 pub mod measured_cost;
 pub mod morton;
