@@ -1,6 +1,7 @@
 //! One module per subcommand, and the options they share.
 
 pub mod bench;
+pub mod build;
 pub mod build_args;
 pub mod build_compare;
 pub mod info;
