@@ -31,6 +31,8 @@ enum Command {
     /// Build a tree over a mesh and save both in a .hbv file, which info and trace load
     /// in place of a mesh (format: docs/BVH_FILE.md).
     Build(commands::build::BuildCommandArgs),
+    /// Experiments that each answer one question with a table (see BENCHMARKS.md).
+    Experiment(commands::experiment::ExperimentArgs),
 }
 
 fn main() -> ExitCode {
@@ -62,6 +64,7 @@ fn main() -> ExitCode {
         Command::Bench(args) => commands::bench::run(&args),
         Command::BuildCompare(args) => commands::build_compare::run(&args),
         Command::Build(args) => commands::build::run(&args),
+        Command::Experiment(args) => commands::experiment::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

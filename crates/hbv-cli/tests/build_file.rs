@@ -149,3 +149,33 @@ fn a_damaged_tree_file_is_one_clear_line() {
     assert!(err.starts_with("hbv: error: cannot load tree: "), "{err}");
     assert!(err.contains("cut.hbv: the file is truncated"), "{err}");
 }
+
+#[test]
+fn the_dynamic_experiment_reports_every_fraction_against_a_fresh_build() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("t.obj");
+    write_obj(&torus(Vec3::ZERO, 2.0, 0.6, 24, 12), &obj);
+    let out = hbv(&["experiment", "dynamic", p(&obj), "--json"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let rows = report["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 6);
+    for row in rows {
+        for key in [
+            "after",
+            "after_optimize",
+            "fresh_insertion",
+            "fresh_binned_sah",
+        ] {
+            assert!(row[key]["expected_tests"].as_f64().unwrap() >= 1.0, "{row}");
+            assert!(row[key]["sah"].as_f64().unwrap() > 0.0, "{row}");
+        }
+        // A reinsertion pass never makes the tree worse.
+        assert!(
+            row["after_optimize"]["expected_tests"].as_f64().unwrap()
+                <= row["after"]["expected_tests"].as_f64().unwrap() + 1e-9
+        );
+    }
+    assert_eq!(rows[5]["change"], "move");
+    assert_eq!(rows[5]["triangles_changed"], 24 * 12 * 2);
+}

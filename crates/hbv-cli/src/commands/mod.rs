@@ -4,5 +4,6 @@ pub mod bench;
 pub mod build;
 pub mod build_args;
 pub mod build_compare;
+pub mod experiment;
 pub mod info;
 pub mod trace;

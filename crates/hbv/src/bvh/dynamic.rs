@@ -128,6 +128,28 @@ impl DynamicBvh {
         bvh
     }
 
+    /// Takes over `tree`, built by any builder over `mesh`: triangle `i` has id `i`. The
+    /// leaf size becomes at least the tree's largest leaf.
+    pub fn from_tree(mesh: &TriangleMesh, tree: BuildTree, config: DynamicConfig) -> Self {
+        let mut bvh = Self::new(config);
+        let n = mesh.triangle_count();
+        bvh.triangles = mesh.triangles().map(Some).collect();
+        bvh.bounds = vec![Aabb::EMPTY; n];
+        bvh.leaf_of = vec![NO_LEAF; n];
+        let mut max_leaf = bvh.config.max_leaf_size;
+        tree.walk(|node, _| {
+            let prims = tree.node(node).prims();
+            max_leaf = max_leaf.max(prims.len());
+            for &p in prims {
+                bvh.leaf_of[p as usize] = node;
+                bvh.bounds[p as usize] = mesh.triangle(p as usize).bounds();
+            }
+        });
+        bvh.config.max_leaf_size = max_leaf;
+        bvh.tree = tree;
+        bvh
+    }
+
     /// Adds `triangles` to the tree and returns their ids, in order. Degenerate triangles get
     /// an id but stay out of the tree (they are never hit) until moved to a proper shape.
     pub fn insert(&mut self, triangles: &[[Vec3; 3]]) -> Result<Vec<u32>, DynamicError> {
@@ -436,6 +458,19 @@ mod tests {
         })
         .build(&mesh);
         assert_eq!(dynamic.tree(), &built);
+        dynamic.validate().unwrap();
+    }
+
+    #[test]
+    fn any_builders_tree_can_be_taken_over() {
+        use crate::bvh::build::{BinnedSahBuilder, BinnedSahConfig};
+        let mesh = icosphere(Vec3::ZERO, 1.0, 3);
+        let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+        let mut dynamic = DynamicBvh::from_tree(&mesh, tree, DynamicConfig::default());
+        dynamic.validate().unwrap();
+        dynamic.remove(&[0, 5, 9]).unwrap();
+        let t = mesh.triangle(0);
+        dynamic.insert(&[[t.p0, t.p1, t.p2]]).unwrap();
         dynamic.validate().unwrap();
     }
 
