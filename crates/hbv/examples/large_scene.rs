@@ -19,7 +19,7 @@ use hbv::bvh::build::{
 };
 use hbv::bvh::file::BvhFile;
 use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
-use hbv::bvh::{BuildNode, BuildTree};
+use hbv::bvh::BuildTree;
 use hbv::geometry::Ray;
 use hbv::glam::Vec3;
 use hbv::mesh::procedural::default_scene;
@@ -41,7 +41,7 @@ fn proc_status_bytes(field: &str) -> u64 {
 
 /// Bytes held by a `BuildTree`: its nodes, and their child and triangle lists.
 fn tree_bytes(tree: &BuildTree) -> usize {
-    tree.nodes().len() * std::mem::size_of::<BuildNode>()
+    std::mem::size_of_val(tree.nodes())
         + tree.nodes().iter().map(|n| 4 * n.arity()).sum::<usize>()
 }
 
