@@ -159,7 +159,7 @@ fn the_dynamic_experiment_reports_every_fraction_against_a_fresh_build() {
     assert!(out.status.success(), "{}", stderr(&out));
     let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     let rows = report["rows"].as_array().unwrap();
-    assert_eq!(rows.len(), 6);
+    assert_eq!(rows.len(), 9);
     for row in rows {
         for key in [
             "after",
@@ -176,6 +176,7 @@ fn the_dynamic_experiment_reports_every_fraction_against_a_fresh_build() {
                 <= row["after"]["expected_tests"].as_f64().unwrap() + 1e-9
         );
     }
-    assert_eq!(rows[5]["change"], "move");
-    assert_eq!(rows[5]["triangles_changed"], 24 * 12 * 2);
+    assert_eq!(rows[7]["change"], "move");
+    assert_eq!(rows[8]["change"], "move+ins");
+    assert_eq!(rows[8]["triangles_changed"], 24 * 12 * 2);
 }

@@ -41,8 +41,7 @@ fn proc_status_bytes(field: &str) -> u64 {
 
 /// Bytes held by a `BuildTree`: its nodes, and their child and triangle lists.
 fn tree_bytes(tree: &BuildTree) -> usize {
-    std::mem::size_of_val(tree.nodes())
-        + tree.nodes().iter().map(|n| 4 * n.arity()).sum::<usize>()
+    std::mem::size_of_val(tree.nodes()) + tree.nodes().iter().map(|n| 4 * n.arity()).sum::<usize>()
 }
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

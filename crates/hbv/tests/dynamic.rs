@@ -17,8 +17,9 @@ use proptest::strategy::ValueTree;
 enum Step {
     Insert(Vec<[Vec3; 3]>),
     Remove(Vec<usize>),
-    /// Move some triangles by an offset (or flatten one to a degenerate shape), then refit.
-    Move(Vec<(usize, Vec3, bool)>),
+    /// Move some triangles by an offset (or flatten one to a degenerate shape), then refit
+    /// (false) or reinsert the moved triangles (true).
+    Move(Vec<(usize, Vec3, bool)>, bool),
     Optimize(u64),
 }
 
@@ -37,7 +38,8 @@ fn step(s: f32) -> impl Strategy<Value = Step> {
         3 => prop::collection::vec(triangle(s), 1..20).prop_map(Step::Insert),
         2 => prop::collection::vec(any::<usize>(), 1..12).prop_map(Step::Remove),
         2 => prop::collection::vec((any::<usize>(), point(s * 0.5), prop::bool::weighted(0.1)), 1..12)
-            .prop_map(Step::Move),
+            .prop_flat_map(|moves| (Just(moves), any::<bool>()))
+            .prop_map(|(moves, reinsert)| Step::Move(moves, reinsert)),
         1 => any::<u64>().prop_map(Step::Optimize),
     ]
 }
@@ -69,7 +71,7 @@ fn apply(bvh: &mut DynamicBvh, step: &Step) {
             ids.dedup();
             bvh.remove(&ids).unwrap();
         }
-        Step::Move(moves) => {
+        Step::Move(moves, reinsert) => {
             if live.is_empty() {
                 return;
             }
@@ -83,7 +85,11 @@ fn apply(bvh: &mut DynamicBvh, step: &Step) {
                 };
                 bvh.set_triangle(id, moved).unwrap();
             }
-            bvh.refit();
+            if *reinsert {
+                bvh.reinsert_moved();
+            } else {
+                bvh.refit();
+            }
         }
         Step::Optimize(seed) => {
             bvh.optimize(ReinsertionConfig {
