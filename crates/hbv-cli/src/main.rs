@@ -28,6 +28,11 @@ enum Command {
     /// Every builder on one table: build time, tree shape, predicted cost E[X] and the tests
     /// actually counted on isotropic lines and real rays.
     BuildCompare(commands::build_compare::BuildCompareArgs),
+    /// Build a tree over a mesh and save both in a .hbv file, which info and trace load
+    /// in place of a mesh (format: docs/BVH_FILE.md).
+    Build(commands::build::BuildCommandArgs),
+    /// Experiments that each answer one question with a table (see BENCHMARKS.md).
+    Experiment(commands::experiment::ExperimentArgs),
 }
 
 fn main() -> ExitCode {
@@ -58,6 +63,8 @@ fn main() -> ExitCode {
         Command::Trace(args) => commands::trace::run(&args),
         Command::Bench(args) => commands::bench::run(&args),
         Command::BuildCompare(args) => commands::build_compare::run(&args),
+        Command::Build(args) => commands::build::run(&args),
+        Command::Experiment(args) => commands::experiment::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

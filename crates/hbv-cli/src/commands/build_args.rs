@@ -9,6 +9,7 @@ use hbv::bvh::build::{
     BinnedSahBuilder, BinnedSahConfig, Builder, InsertionBuilder, InsertionConfig, InsertionOrder,
     LbvhBuilder, LbvhConfig, MedianBuilder, MedianConfig, SweepSahBuilder, SweepSahConfig,
 };
+use hbv::bvh::file::{is_bvh_file, BvhFile};
 use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
 use hbv::bvh::optimize::ReinsertionOptimizer;
 use hbv::bvh::BuildTree;
@@ -221,19 +222,78 @@ pub struct BuildReport {
 }
 
 /// Loads `path`, or makes the built-in scene when there is none, with the load time in seconds.
+/// A `.hbv` file gives its mesh (its tree is dropped; see [`load_scene`]).
 pub fn load_mesh(path: Option<&Path>) -> anyhow::Result<(TriangleMesh, String, f64)> {
+    let scene = load_scene(path)?;
+    Ok((scene.mesh, scene.name, scene.load_seconds))
+}
+
+/// What a command's input gives: a mesh, and the tree saved with it when the input is a `.hbv`
+/// file (recognized by its magic number, whatever its name).
+pub struct Scene {
+    pub mesh: TriangleMesh,
+    pub saved: Option<SavedTree>,
+    pub name: String,
+    pub load_seconds: f64,
+}
+
+/// A tree loaded from a `.hbv` file, and the settings that built it.
+pub struct SavedTree {
+    pub tree: BuildTree,
+    pub settings: String,
+}
+
+/// Loads a mesh or a `.hbv` file at `path`, or makes the built-in scene when there is none.
+pub fn load_scene(path: Option<&Path>) -> anyhow::Result<Scene> {
     let start = Instant::now();
-    let (mesh, name) = match path {
+    let (mesh, saved, name) = match path {
+        Some(p) if is_bvh_file(p) => {
+            let file = BvhFile::load(p).context("cannot load tree")?;
+            let saved = SavedTree {
+                tree: file.tree,
+                settings: file.settings,
+            };
+            (file.mesh, Some(saved), p.display().to_string())
+        }
         Some(p) => (
             TriangleMesh::load(p).with_context(|| "cannot load mesh".to_string())?,
+            None,
             p.display().to_string(),
         ),
         None => (
             default_scene(DEFAULT_SCENE_DETAIL),
+            None,
             format!("built-in scene (detail {DEFAULT_SCENE_DETAIL})"),
         ),
     };
-    Ok((mesh, name, start.elapsed().as_secs_f64()))
+    Ok(Scene {
+        mesh,
+        saved,
+        name,
+        load_seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+impl Scene {
+    /// The saved tree, or one built over the mesh with `build`; with the build report and a
+    /// description of how the tree was made.
+    pub fn tree(self, build: &BuildArgs) -> (TriangleMesh, BuildReport, String) {
+        match self.saved {
+            Some(saved) => {
+                let report = BuildReport {
+                    tree: saved.tree,
+                    build_seconds: 0.0,
+                    optimize_seconds: 0.0,
+                    search_nodes_per_insertion: 0.0,
+                };
+                (self.mesh, report, format!("saved: {}", saved.settings))
+            }
+            None => {
+                let report = build.build_with_report(&self.mesh);
+                (self.mesh, report, build.describe())
+            }
+        }
+    }
 }
 
 /// `--threads N` as a rayon pool: 0 means all cores.

@@ -6,11 +6,12 @@ use clap::Args;
 use hbv::bvh::{expected_tests, sah_cost, SahWeights};
 use serde_json::json;
 
-use super::build_args::{load_mesh, BuildArgs};
+use super::build_args::{load_scene, BuildArgs};
 
 #[derive(Args)]
 pub struct InfoArgs {
-    /// Mesh file (.obj, .ply, .gltf, .glb); the built-in scene when omitted.
+    /// Mesh file (.obj, .ply, .gltf, .glb) or saved tree (.hbv, from `hbv build`); the built-in
+    /// scene when omitted.
     pub mesh: Option<PathBuf>,
     #[command(flatten)]
     pub build: BuildArgs,
@@ -20,8 +21,18 @@ pub struct InfoArgs {
 }
 
 pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
-    let (mesh, name, load_seconds) = load_mesh(args.mesh.as_deref())?;
-    let built = args.build.build_with_report(&mesh);
+    let scene = load_scene(args.mesh.as_deref())?;
+    let (name, load_seconds, saved) = (
+        scene.name.clone(),
+        scene.load_seconds,
+        scene.saved.is_some(),
+    );
+    let (mesh, built, builder_options) = scene.tree(&args.build);
+    let builder_name = if saved {
+        "saved"
+    } else {
+        args.build.builder().name()
+    };
     let (tree, build_seconds, evaluated) = (
         built.tree,
         built.build_seconds,
@@ -46,8 +57,8 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
             "degenerate": mesh.degenerate_count(),
             "vertices": mesh.positions().len(),
             "bounds": { "min": lo, "max": hi },
-            "builder": args.build.builder().name(),
-            "builder_options": args.build.describe(),
+            "builder": builder_name,
+            "builder_options": builder_options,
             "load_seconds": load_seconds,
             "build_seconds": build_seconds,
             "optimize": args.build.optimize,
@@ -84,7 +95,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         "bounds      [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]",
         lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
     );
-    println!("builder     {}", args.build.describe());
+    println!("builder     {builder_options}");
     println!("load        {load_seconds:.3} s");
     if evaluated > 0.0 {
         println!("build       {build_seconds:.3} s ({evaluated:.1} nodes evaluated per insertion)");

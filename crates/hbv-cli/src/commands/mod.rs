@@ -1,7 +1,9 @@
 //! One module per subcommand, and the options they share.
 
 pub mod bench;
+pub mod build;
 pub mod build_args;
 pub mod build_compare;
+pub mod experiment;
 pub mod info;
 pub mod trace;

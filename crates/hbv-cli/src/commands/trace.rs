@@ -8,11 +8,11 @@ use clap::Args;
 use hbv_cli::{hit_file, ray_file};
 use serde_json::json;
 
-use super::build_args::{load_mesh, thread_pool, BuildArgs, BuilderName, LayoutName};
+use super::build_args::{load_scene, thread_pool, BuildArgs, BuilderName, LayoutName};
 
 #[derive(Args)]
 pub struct TraceArgs {
-    /// Mesh file (.obj, .ply, .gltf, .glb).
+    /// Mesh file (.obj, .ply, .gltf, .glb) or saved tree (.hbv, from `hbv build`).
     pub mesh: PathBuf,
     /// Ray file (.npz with origins, directions, optional tmin, tmax).
     #[arg(long)]
@@ -42,10 +42,12 @@ pub struct TraceArgs {
 
 pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     let pool = thread_pool(args.threads)?;
-    let (mesh, _, load_seconds) = load_mesh(Some(&args.mesh))?;
+    let scene = load_scene(Some(&args.mesh))?;
+    let load_seconds = scene.load_seconds;
     let rays = ray_file::read_rays(&args.rays).context("cannot read rays")?;
     let build = args.build.or_builder(BuilderName::BinnedSah);
-    let (tree, build_seconds) = pool.install(|| build.build(&mesh));
+    let (mesh, built, builder_options) = pool.install(|| scene.tree(&build));
+    let (tree, build_seconds) = (built.tree, built.build_seconds + built.optimize_seconds);
     let accel = args.layout.lay_out(&tree, &mesh);
 
     let start = Instant::now();
@@ -97,7 +99,7 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
             mesh.triangle_count()
         );
         println!("load      {load_seconds:.3} s");
-        println!("build     {build_seconds:.3} s ({})", build.describe());
+        println!("build     {build_seconds:.3} s ({builder_options})");
         println!("trace     {trace_seconds:.3} s, {} rays ({query}), {hit_count} hit, {:.3} Mrays/s on {} threads", rays.len(), rays_per_second / 1e6, pool.current_num_threads());
         println!("wrote     {}", args.out.display());
     }

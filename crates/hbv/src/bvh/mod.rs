@@ -2,6 +2,8 @@
 
 pub mod build;
 pub mod cost;
+pub mod dynamic;
+pub mod file;
 pub mod layout;
 pub mod measured_cost;
 pub mod morton;

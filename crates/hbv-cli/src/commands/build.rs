@@ -1,0 +1,97 @@
+//! `hbv build`: build a tree over a mesh once and save it, with the mesh, as a `.hbv` file that
+//! `info` and `trace` load instead of building again.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+use anyhow::{bail, Context};
+use clap::Args;
+use hbv::bvh::expected_tests;
+use hbv::bvh::file::BvhFile;
+use hbv_cli::atomic_write::write_atomically;
+use serde_json::json;
+
+use super::build_args::{load_mesh, BuildArgs, BuilderName};
+
+#[derive(Args)]
+pub struct BuildCommandArgs {
+    /// Mesh file (.obj, .ply, .gltf, .glb); the built-in scene when omitted.
+    pub mesh: Option<PathBuf>,
+    /// Output file (.hbv), written atomically (temporary file, then rename).
+    #[arg(short = 'o', long)]
+    pub out: PathBuf,
+    /// Replace the output file if it exists.
+    #[arg(long)]
+    pub force: bool,
+    #[command(flatten)]
+    pub build: BuildArgs,
+    /// Print one JSON object instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+pub fn run(args: &BuildCommandArgs) -> anyhow::Result<()> {
+    if !args.force && args.out.exists() {
+        bail!("{} exists: pass --force to replace it", args.out.display());
+    }
+    let (mesh, name, load_seconds) = load_mesh(args.mesh.as_deref())?;
+    let build = args.build.or_builder(BuilderName::BinnedSah);
+    let built = build.build_with_report(&mesh);
+    let cost = expected_tests(&built.tree);
+    let file = BvhFile {
+        mesh,
+        tree: built.tree,
+        settings: build.describe(),
+    };
+    let mut bytes = 0u64;
+    write_atomically(&args.out, |out| {
+        let mut counted = CountingWriter { out, bytes: 0 };
+        file.write_to(&mut counted)?;
+        bytes = counted.bytes;
+        Ok(())
+    })
+    .context("cannot save the tree")?;
+    let build_seconds = built.build_seconds + built.optimize_seconds;
+    if args.json {
+        let out = json!({
+            "mesh": name,
+            "out": args.out.display().to_string(),
+            "triangles": file.mesh.triangle_count(),
+            "nodes": file.tree.nodes().len() - file.tree.released_count(),
+            "builder_options": file.settings,
+            "load_seconds": load_seconds,
+            "build_seconds": build_seconds,
+            "expected_tests": cost,
+            "bytes": bytes,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        println!(
+            "mesh      {name} ({} triangles)",
+            file.mesh.triangle_count()
+        );
+        println!(
+            "build     {build_seconds:.3} s ({}), E[X] {cost:.3}",
+            file.settings
+        );
+        println!("wrote     {} ({bytes} bytes)", args.out.display());
+    }
+    Ok(())
+}
+
+/// Counts the bytes written through it.
+struct CountingWriter<'a, W> {
+    out: &'a mut W,
+    bytes: u64,
+}
+
+impl<W: Write> Write for CountingWriter<'_, W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.out.write(buf)?;
+        self.bytes += n as u64;
+        Ok(n)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.out.flush()
+    }
+}

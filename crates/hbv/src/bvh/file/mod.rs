@@ -1,0 +1,67 @@
+//! `.hbv` files: a built tree saved with its mesh and the settings that built it, loaded back
+//! without building again. The byte layout is in `format.rs` and `docs/BVH_FILE.md`.
+//!
+//! Loading trusts nothing in the file: the magic number, version and byte order are checked,
+//! every declared size is checked against the file's length before anything is allocated,
+//! header and payload each carry a CRC-32, and the tree is checked node by node (every child
+//! range inside the file, children after their parent, each node reached once, every triangle
+//! id and vertex index in range, every box containing what is below it). A bad file gives a
+//! [`BvhFileError`] naming the file and what is wrong; it never panics.
+
+mod error;
+mod format;
+mod read;
+mod write;
+
+use std::path::Path;
+
+pub use error::{BvhFileError, BvhFileProblem};
+pub use format::{FORMAT_VERSION, MAGIC};
+
+use crate::bvh::BuildTree;
+use crate::mesh::TriangleMesh;
+
+/// The contents of a `.hbv` file: a mesh, a tree over its triangles, and a free-form line of
+/// the settings that built the tree (e.g. `binned-sah (leaf size 4) + reinsertion optimization`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct BvhFile {
+    pub mesh: TriangleMesh,
+    pub tree: BuildTree,
+    pub settings: String,
+}
+
+impl BvhFile {
+    /// Loads and checks the file at `path`; files of [`read::MAP_AT_LEAST`] bytes or more are
+    /// memory-mapped rather than read.
+    pub fn load(path: impl AsRef<Path>) -> Result<Self, BvhFileError> {
+        read::load(path.as_ref())
+    }
+
+    /// Reads a file's bytes; `source` names it in errors.
+    pub fn from_bytes(bytes: &[u8], source: &Path) -> Result<Self, BvhFileError> {
+        read::parse(bytes, source)
+    }
+
+    /// Writes the file to `out` (callers make it atomic: write to a temporary file, then
+    /// rename). The tree is saved in breadth-first order; loading gives back the same tree
+    /// after [`BuildTree::compact`] on both sides.
+    pub fn write_to(&self, out: &mut impl std::io::Write) -> std::io::Result<()> {
+        write::write(self, out)
+    }
+
+    /// The file's bytes.
+    pub fn to_bytes(&self) -> Vec<u8> {
+        let mut bytes = Vec::new();
+        self.write_to(&mut bytes).expect("writing to memory");
+        bytes
+    }
+}
+
+/// Whether the file at `path` starts with the `.hbv` magic number, whatever its name.
+pub fn is_bvh_file(path: impl AsRef<Path>) -> bool {
+    use std::io::Read;
+    let mut magic = [0u8; 8];
+    std::fs::File::open(path)
+        .and_then(|mut f| f.read_exact(&mut magic))
+        .is_ok_and(|()| magic == MAGIC)
+}
