@@ -169,7 +169,7 @@ class Embree:
 
 def hbv_trace(hbv, mesh, rays_path, out_path, layout, query, repeat, builder):
     """Answers of `hbv trace` and the Mrays/s of each of `repeat` invocations."""
-    cmd = [str(hbv), "trace", str(mesh), "--rays", str(rays_path), "--out", str(out_path)]
+    cmd = [str(hbv), "trace", str(mesh), "--rays", str(rays_path), "--out", str(out_path), "--force"]
     cmd += ["--threads", "1", "--json", "--layout", layout, "--builder", builder]
     if query == "occluded":
         cmd.append("--occluded")

@@ -3,13 +3,16 @@
 
 use std::fmt;
 use std::fs::File;
-use std::io::{self, BufReader};
+use std::io::{self, BufReader, Read, Seek};
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use hbv::geometry::Ray;
 use ndarray::ArrayD;
-use ndarray_npy::{NpzReader, ReadNpyError, ReadNpzError, ReadableElement};
+use ndarray_npy::npy::header::Header;
+use ndarray_npy::{ReadNpyError, ReadNpyExt, ReadNpzError, ReadableElement};
+use zip::result::ZipError;
+use zip::ZipArchive;
 
 /// An error reading an `.npz` ray, hit or occlusion file: the file, the member if one is to
 /// blame, and why.
@@ -95,15 +98,9 @@ impl fmt::Display for RayFileError {
     }
 }
 
-impl std::error::Error for RayFileError {
-    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
-        match &self.reason {
-            Reason::Open(e) => Some(e),
-            Reason::NotNpz(e) => Some(e),
-            _ => None,
-        }
-    }
-}
+/// The message includes the cause's, so the cause is not also given as the `source()`: error
+/// reports that print the chain (anyhow's `{:#}`) would repeat it.
+impl std::error::Error for RayFileError {}
 
 /// A shape as NumPy prints it: `(5,)`, `(5, 3)`, `()`.
 fn shape_str(shape: &[usize]) -> String {
@@ -141,29 +138,79 @@ fn dtype_str(descr: String) -> String {
     format!("{name} ({descr})")
 }
 
+/// Anything an archive can be read from: a file, or bytes in memory.
+trait ReadSeek: Read + Seek {}
+impl<T: Read + Seek> ReadSeek for T {}
+
 /// An open `.npz` archive, for reading members with errors that name the file and the member.
+///
+/// Members are read through the zip archive directly (not `NpzReader`) so that an `.npy`
+/// header is checked against the data that follows it before anything is allocated: a header
+/// may declare any shape, and `ndarray-npy` allocates the declared size up front.
 pub(crate) struct Archive {
     path: PathBuf,
-    npz: NpzReader<BufReader<File>>,
+    zip: ZipArchive<Box<dyn ReadSeek>>,
+    /// Member names as stored, and as NumPy lists them (without a `.npy` suffix).
+    stored: Vec<String>,
     names: Vec<String>,
 }
 
 impl Archive {
     /// Opens `path` and lists its members (names without their `.npy` suffix).
     pub(crate) fn open(path: &Path) -> Result<Self, RayFileError> {
-        let error = |reason| RayFileError {
+        let file = File::open(path).map_err(|e| RayFileError {
             path: path.to_owned(),
             member: None,
-            reason,
+            reason: Reason::Open(e),
+        })?;
+        Self::from_reader(path, BufReader::new(file))
+    }
+
+    /// Reads an archive from `reader`; `path` names it in errors.
+    pub(crate) fn from_reader(
+        path: &Path,
+        reader: impl Read + Seek + 'static,
+    ) -> Result<Self, RayFileError> {
+        let error = |e: ZipError| RayFileError {
+            path: path.to_owned(),
+            member: None,
+            reason: Reason::NotNpz(ReadNpzError::from(e)),
         };
-        let file = File::open(path).map_err(|e| error(Reason::Open(e)))?;
-        let mut npz = NpzReader::new(BufReader::new(file)).map_err(|e| error(Reason::NotNpz(e)))?;
-        let names = npz.names().map_err(|e| error(Reason::NotNpz(e)))?;
+        let reader: Box<dyn ReadSeek> = Box::new(reader);
+        let zip = ZipArchive::new(reader).map_err(error)?;
+        let stored: Vec<String> = (0..zip.len())
+            .filter_map(|i| zip.name_for_index(i).map(str::to_owned))
+            .collect();
+        let names = stored
+            .iter()
+            .map(|n| n.strip_suffix(".npy").unwrap_or(n).to_owned())
+            .collect();
         Ok(Self {
             path: path.to_owned(),
-            npz,
+            zip,
+            stored,
             names,
         })
+    }
+
+    /// The bytes of member `name` (stored as `name`, else as `name.npy`, as NumPy looks it up).
+    fn member_bytes(&mut self, name: &str) -> Result<Vec<u8>, RayFileError> {
+        let suffixed = format!("{name}.npy");
+        let stored = if self.stored.iter().any(|n| n == name) {
+            name
+        } else {
+            suffixed.as_str()
+        };
+        let mut bytes = Vec::new();
+        let read = self
+            .zip
+            .by_name(stored)
+            .map_err(io::Error::other)
+            .and_then(|mut member| member.read_to_end(&mut bytes));
+        match read {
+            Ok(_) => Ok(bytes),
+            Err(e) => Err(self.error(name, Reason::Invalid(format!("cannot read: {e}")))),
+        }
     }
 
     fn error(&self, member: &str, reason: Reason) -> RayFileError {
@@ -199,11 +246,28 @@ impl Archive {
         if !self.has(name) {
             return Err(self.missing(name));
         }
-        match self.npz.by_name::<_, ndarray::IxDyn>(name) {
+        let bytes = self.member_bytes(name)?;
+        let header = Header::from_reader(&mut bytes.as_slice())
+            .map_err(|e| self.error(name, Reason::Invalid(format!("not a .npy array: {e}"))))?;
+        // Every element takes at least one byte: a header declaring more elements than there
+        // are bytes lies, and must not make the reader allocate what it declares.
+        let declared = header
+            .shape
+            .iter()
+            .try_fold(1usize, |n, &d| n.checked_mul(d));
+        if declared.is_none_or(|n| n > bytes.len()) {
+            return Err(self.error(
+                name,
+                Reason::Invalid(format!(
+                    "the .npy header declares shape {} but the member holds only {} bytes",
+                    shape_str(&header.shape),
+                    bytes.len()
+                )),
+            ));
+        }
+        match ArrayD::<T>::read_npy(bytes.as_slice()) {
             Ok(a) => Ok(Ok(a)),
-            Err(ReadNpzError::Npy(ReadNpyError::WrongDescriptor(d))) => {
-                Ok(Err(dtype_str(d.to_string())))
-            }
+            Err(ReadNpyError::WrongDescriptor(d)) => Ok(Err(dtype_str(d.to_string()))),
             Err(e) => Err(self.error(name, Reason::Invalid(format!("cannot read: {e}")))),
         }
     }
@@ -318,7 +382,19 @@ fn read_rows(
 /// Errors name the file, the member and the reason: a missing file or member, an archive that is
 /// not a zip, a wrong shape, a row count that differs between members, or another dtype.
 pub fn read_rays(path: &Path) -> Result<Vec<Ray>, RayFileError> {
-    let mut npz = Archive::open(path)?;
+    rays_of(Archive::open(path)?)
+}
+
+/// Reads the rays of a ray file held by `reader` (bytes in memory, a stream), as
+/// [`read_rays`] does; `name` stands for the file in error messages.
+pub fn read_rays_from(
+    name: &Path,
+    reader: impl Read + Seek + 'static,
+) -> Result<Vec<Ray>, RayFileError> {
+    rays_of(Archive::from_reader(name, reader)?)
+}
+
+fn rays_of(mut npz: Archive) -> Result<Vec<Ray>, RayFileError> {
     let (origins, n) = read_rows(&mut npz, "origins", Some(3))?;
     let dir_name = match (npz.has("directions"), npz.has("dirs")) {
         (true, _) => "directions",

@@ -257,6 +257,8 @@ fn trace_with_bad_ray_file_fails_and_leaves_output_untouched() {
         rays_path.to_str().unwrap(),
         "--out",
         out_path.to_str().unwrap(),
+        // Even when asked to replace it, a failed run leaves the output alone.
+        "--force",
     ]);
     assert!(!out.status.success());
     let e = stderr(&out);

@@ -20,6 +20,9 @@ pub struct TraceArgs {
     /// Output file (.npz); written atomically (temporary file, then rename).
     #[arg(long)]
     pub out: PathBuf,
+    /// Replace the output file if it exists (without this, an existing file is an error).
+    #[arg(long)]
+    pub force: bool,
     /// Any-hit query: write `occluded` instead of closest hits.
     #[arg(long)]
     pub occluded: bool,
@@ -41,6 +44,14 @@ pub struct TraceArgs {
 }
 
 pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
+    // Checked first, so that a run that would be refused costs nothing. `symlink_metadata`:
+    // a dangling link is in the way too.
+    if !args.force && std::fs::symlink_metadata(&args.out).is_ok() {
+        anyhow::bail!(
+            "{}: the output file exists; pass --force to replace it",
+            args.out.display()
+        );
+    }
     let pool = thread_pool(args.threads)?;
     let scene = load_scene(Some(&args.mesh))?;
     let load_seconds = scene.load_seconds;

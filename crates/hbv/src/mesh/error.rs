@@ -29,10 +29,11 @@ impl From<&Path> for MeshSource {
 /// also names the place in it (`"face 12"`, `"line 40"`, `"vertex 7"`, `"header"`, ...).
 #[derive(Debug, thiserror::Error)]
 pub enum MeshError {
+    /// The message includes `error`'s, so `error` is not also given as the `source()`: error
+    /// reports that print the chain (anyhow's `{:#}`) would repeat it.
     #[error("{source_name}: cannot read: {error}")]
     Io {
         source_name: MeshSource,
-        #[source]
         error: std::io::Error,
     },
     #[error("{source_name}: unsupported mesh format (expected .obj, .ply, .gltf or .glb)")]

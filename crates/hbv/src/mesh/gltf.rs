@@ -16,18 +16,30 @@ use gltf::{buffer, Document, Gltf, Mesh, Node, Semantic};
 
 use super::{MeshError, TriangleMesh};
 
-/// Loads a `.gltf` or `.glb` file as one triangle mesh in world space.
+/// Parses the bytes of a `.gltf` or `.glb` file (`path` names it in errors) as one triangle
+/// mesh in world space. Buffers in other files are read from `folder`; without one (bytes
+/// that never were a file) they are an error.
 ///
 /// Accepts primitives of mode TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN (converted with the
 /// glTF rules), indexed (u8/u16/u32) or not, with float VEC3 positions. External buffers are
-/// read relative to the file's folder. Invalid JSON, a missing buffer, unreadable accessor
+/// read relative to `folder`. Invalid JSON, a missing buffer, unreadable accessor
 /// data, an index past the primitive's positions or a node cycle is an error naming the place;
 /// a scene without triangles is an error ("no triangles").
-pub(super) fn load(path: &Path) -> Result<TriangleMesh, MeshError> {
-    let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
-    let Gltf { document, blob } = Gltf::from_slice(&bytes)
-        .map_err(|e| MeshError::invalid(path, "file", format!("not valid glTF: {e}")))?;
-    let buffers = load_buffers(path, &document, blob)?;
+pub(super) fn parse(
+    path: &Path,
+    bytes: &[u8],
+    folder: Option<&Path>,
+) -> Result<TriangleMesh, MeshError> {
+    let not_gltf =
+        |e: gltf::Error| MeshError::invalid(path, "file", format!("not valid glTF: {e}"));
+    check_glb_length(path, bytes)?;
+    // Validation happens in two steps because the `gltf` crate's validator (gltf-json 1.4.1,
+    // `primitive_validate_hook`) indexes the accessor list with a primitive's POSITION index
+    // before checking it: a file naming a missing accessor would panic (found by fuzzing).
+    let Gltf { document, blob } = Gltf::from_slice_without_validation(bytes).map_err(not_gltf)?;
+    check_position_accessors(path, document.as_json())?;
+    let document = Document::from_json(document.into_json()).map_err(not_gltf)?;
+    let buffers = load_buffers(path, folder, &document, blob)?;
 
     let mut out = Flattened {
         path,
@@ -57,16 +69,55 @@ pub(super) fn load(path: &Path) -> Result<TriangleMesh, MeshError> {
     TriangleMesh::from_parts(path.into(), out.positions, out.triangles)
 }
 
-/// Reads every buffer: the GLB `BIN` chunk, a `data:` URI, or a file next to `path`.
+/// A GLB must declare a total length of at least its 12-byte header (the `gltf` crate
+/// subtracts 12 from it unchecked).
+fn check_glb_length(path: &Path, bytes: &[u8]) -> Result<(), MeshError> {
+    if let Some(length) = bytes.strip_prefix(b"glTF").and_then(|b| b.get(4..8)) {
+        let length = u32::from_le_bytes([length[0], length[1], length[2], length[3]]);
+        if length < 12 {
+            return Err(MeshError::invalid(
+                path,
+                "GLB header",
+                format!("declares a total length of {length} bytes, less than the header's 12"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Every primitive's POSITION must name an accessor that exists (checked before the `gltf`
+/// crate's validation, which would index the accessor list with it).
+fn check_position_accessors(path: &Path, root: &gltf::json::Root) -> Result<(), MeshError> {
+    use gltf::json::mesh::Semantic as JsonSemantic;
+    use gltf::json::validation::Checked;
+    let accessors = root.accessors.len();
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            let position = primitive
+                .attributes
+                .get(&Checked::Valid(JsonSemantic::Positions));
+            if let Some(index) = position.filter(|i| i.value() >= accessors) {
+                return Err(MeshError::invalid(
+                    path,
+                    format!("mesh {m} primitive {p}"),
+                    format!(
+                        "POSITION names accessor {}, but the file has {accessors} accessors",
+                        index.value()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Reads every buffer: the GLB `BIN` chunk, a `data:` URI, or a file in `folder`.
 fn load_buffers(
     path: &Path,
+    folder: Option<&Path>,
     document: &Document,
     mut blob: Option<Vec<u8>>,
 ) -> Result<Vec<buffer::Data>, MeshError> {
-    let base = match path.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir,
-        _ => Path::new("."),
-    };
     let mut buffers = Vec::new();
     for buffer in document.buffers() {
         let place = format!("buffer {}", buffer.index());
@@ -75,7 +126,16 @@ fn load_buffers(
             buffer::Source::Uri(uri) if uri.starts_with("data:") => "its data URI".to_string(),
             buffer::Source::Uri(uri) => format!("'{uri}'"),
         };
-        let data = buffer::Data::from_source_and_blob(buffer.source(), Some(base), &mut blob)
+        if folder.is_none()
+            && matches!(buffer.source(), buffer::Source::Uri(uri) if !uri.starts_with("data:"))
+        {
+            return Err(MeshError::invalid(
+                path,
+                place,
+                format!("cannot load {what}: external files are not read when parsing bytes"),
+            ));
+        }
+        let data = buffer::Data::from_source_and_blob(buffer.source(), folder, &mut blob)
             .map_err(|e| MeshError::invalid(path, &place, format!("cannot load {what}: {e}")))?;
         if data.len() < buffer.length() {
             return Err(MeshError::invalid(

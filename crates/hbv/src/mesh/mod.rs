@@ -4,6 +4,7 @@
 //! primitive id can be compared with any other tool ray by ray.
 
 mod error;
+mod format;
 mod gltf;
 mod obj;
 mod ply;
@@ -15,6 +16,7 @@ use glam::Vec3;
 
 use crate::geometry::{Aabb, Triangle};
 pub use error::{MeshError, MeshSource};
+pub use format::MeshFormat;
 
 /// An indexed triangle mesh: f32 positions and, per triangle, three u32 vertex indices.
 ///
@@ -67,19 +69,42 @@ impl TriangleMesh {
     }
 
     /// Loads a mesh, choosing the reader by the file's extension: `.obj`, `.ply`, `.gltf`, `.glb`.
+    ///
+    /// The whole file is read, then parsed as by [`TriangleMesh::from_bytes`]; glTF buffers
+    /// in other files are read from the file's folder. Errors name the file, the place in it
+    /// and the reason; no input makes this panic or allocate more than the file can fill.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, MeshError> {
         let path = path.as_ref();
-        let ext = path
-            .extension()
-            .and_then(|e| e.to_str())
-            .map(str::to_ascii_lowercase);
-        match ext.as_deref() {
-            Some("obj") => obj::load(path),
-            Some("ply") => ply::load(path),
-            Some("gltf") | Some("glb") => gltf::load(path),
-            _ => Err(MeshError::UnsupportedFormat {
-                source_name: path.into(),
-            }),
+        let format = MeshFormat::from_path(path).ok_or_else(|| MeshError::UnsupportedFormat {
+            source_name: path.into(),
+        })?;
+        let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
+        match format {
+            MeshFormat::Obj => obj::parse(path, &bytes),
+            MeshFormat::Ply => ply::parse(path, &bytes),
+            MeshFormat::Gltf => {
+                let folder = match path.parent() {
+                    Some(dir) if !dir.as_os_str().is_empty() => dir,
+                    _ => Path::new("."),
+                };
+                gltf::parse(path, &bytes, Some(folder))
+            }
+        }
+    }
+
+    /// Parses a mesh held in memory. `name` is only used in error messages (as a file name
+    /// would be). Never touches the file system: a glTF buffer stored in another file is an
+    /// error (GLB binary chunks and `data:` URIs are read).
+    pub fn from_bytes(
+        format: MeshFormat,
+        name: impl AsRef<Path>,
+        bytes: &[u8],
+    ) -> Result<Self, MeshError> {
+        let name = name.as_ref();
+        match format {
+            MeshFormat::Obj => obj::parse(name, bytes),
+            MeshFormat::Ply => ply::parse(name, bytes),
+            MeshFormat::Gltf => gltf::parse(name, bytes, None),
         }
     }
 

@@ -11,24 +11,22 @@
 //! it from splitting the mesh into models, loading `.mtl` files, reading polylines (`l`) as
 //! faces, or failing on texture/normal/colour data this crate never uses.
 
-use std::fs::File;
-use std::io::{self, BufRead, BufReader, Read};
+use std::io::{self, BufRead, Read};
 use std::path::Path;
 
 use glam::Vec3;
 
 use super::{MeshError, TriangleMesh};
 
-/// Loads an OBJ file as one triangle mesh.
+/// Parses the bytes of an OBJ file (`path` names it in errors) as one triangle mesh.
 ///
 /// Accepts `v x y z [w]` (w divides x, y, z) and `v x y z r g b` vertex lines, and `f` lines
 /// whose vertices are written `i`, `i/t`, `i//n` or `i/t/n`, with 1-based or negative
 /// (relative) position indices. Every other statement is ignored. A face with fewer than three
 /// vertices, an unparsable number or an index outside the file's vertices is an error naming
 /// the line; a file without faces is an error ("no triangles").
-pub(super) fn load(path: &Path) -> Result<TriangleMesh, MeshError> {
-    let file = File::open(path).map_err(|e| MeshError::io(path, e))?;
-    let mut reader = GeometryLines::new(BufReader::new(file));
+pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, MeshError> {
+    let mut reader = GeometryLines::new(bytes);
     // `..Default::default()` covers the fields tobj's optional features add.
     #[allow(clippy::needless_update)]
     let options = tobj::LoadOptions {
@@ -45,7 +43,7 @@ pub(super) fn load(path: &Path) -> Result<TriangleMesh, MeshError> {
     let loaded = tobj::load_obj_buf(&mut reader, &options, |_| Ok(Default::default()));
     let models = match loaded {
         Ok((models, _materials)) => models,
-        Err(error) => return Err(tobj_error(path, error, &mut reader)),
+        Err(error) => return Err(tobj_error(path, bytes, error, &mut reader)),
     };
 
     let mut positions: Vec<Vec3> = Vec::new();
@@ -72,7 +70,7 @@ pub(super) fn load(path: &Path) -> Result<TriangleMesh, MeshError> {
         for arity in arities {
             let n = arity as usize;
             if n < 3 {
-                return Err(short_face(path, face_number, n));
+                return Err(short_face(path, bytes, face_number, n));
             }
             let polygon = mesh.indices.get(start..start + n).ok_or_else(|| {
                 MeshError::invalid(path, "file", "tobj returned fewer face indices than faces")
@@ -93,7 +91,7 @@ pub(super) fn load(path: &Path) -> Result<TriangleMesh, MeshError> {
         ));
     }
     if !positions.iter().all(|p| p.is_finite()) {
-        if let Some(error) = locate_non_finite_vertex(path) {
+        if let Some(error) = locate_non_finite_vertex(path, bytes) {
             return Err(error);
         }
     }
@@ -116,6 +114,7 @@ fn too_many_vertices(path: &Path) -> MeshError {
 /// again (this path only) to find the first bad index.
 fn tobj_error<R: BufRead>(
     path: &Path,
+    bytes: &[u8],
     error: tobj::LoadError,
     reader: &mut GeometryLines<R>,
 ) -> MeshError {
@@ -136,7 +135,7 @@ fn tobj_error<R: BufRead>(
         }
         E::ReadError => format!("line is not valid UTF-8 {text}"),
         E::FaceVertexOutOfBounds => {
-            return locate_bad_index(path).unwrap_or_else(|| {
+            return locate_bad_index(path, bytes).unwrap_or_else(|| {
                 MeshError::invalid(path, "file", "a face vertex index is out of range")
             })
         }
@@ -146,15 +145,13 @@ fn tobj_error<R: BufRead>(
 }
 
 /// The error for the `face_number`-th face (0-based count of `f` lines) having `n` vertices.
-fn short_face(path: &Path, face_number: usize, n: usize) -> MeshError {
+fn short_face(path: &Path, bytes: &[u8], face_number: usize, n: usize) -> MeshError {
     let reason = format!("face has {n} vertices; a face needs at least 3");
-    let line = read_lossy(path).and_then(|text| {
-        text.lines()
-            .enumerate()
-            .filter(|(_, l)| keyword(l.as_bytes()) == b"f")
-            .nth(face_number)
-            .map(|(i, _)| i + 1)
-    });
+    let line = lossy_lines(bytes)
+        .enumerate()
+        .filter(|(_, l)| keyword(l.as_bytes()) == b"f")
+        .nth(face_number)
+        .map(|(i, _)| i + 1);
     match line {
         Some(line) => MeshError::invalid(path, format!("line {line}"), reason),
         None => MeshError::invalid(path, format!("face {face_number}"), reason),
@@ -164,14 +161,12 @@ fn short_face(path: &Path, face_number: usize, n: usize) -> MeshError {
 /// Scans the file for the first face vertex index outside the file's vertices, with tobj's
 /// rules: positive indices count from 1 among all `v` lines of the file, negative ones count
 /// back from the last `v` line before the face.
-fn locate_bad_index(path: &Path) -> Option<MeshError> {
-    let text = read_lossy(path)?;
-    let total = text
-        .lines()
+fn locate_bad_index(path: &Path, bytes: &[u8]) -> Option<MeshError> {
+    let total = lossy_lines(bytes)
         .filter(|l| keyword(l.as_bytes()) == b"v")
         .count();
     let mut seen = 0usize;
-    for (i, line) in text.lines().enumerate() {
+    for (i, line) in lossy_lines(bytes).enumerate() {
         match keyword(line.as_bytes()) {
             b"v" => seen += 1,
             b"f" => {
@@ -202,9 +197,8 @@ fn locate_bad_index(path: &Path) -> Option<MeshError> {
 
 /// Scans the file for the first `v` line whose position is not finite (as tobj computes it:
 /// f32 coordinates, divided by w when there is one), since tobj renumbers the vertices.
-fn locate_non_finite_vertex(path: &Path) -> Option<MeshError> {
-    let text = read_lossy(path)?;
-    for (i, line) in text.lines().enumerate() {
+fn locate_non_finite_vertex(path: &Path, bytes: &[u8]) -> Option<MeshError> {
+    for (i, line) in lossy_lines(bytes).enumerate() {
         if keyword(line.as_bytes()) != b"v" {
             continue;
         }
@@ -229,10 +223,14 @@ fn locate_non_finite_vertex(path: &Path) -> Option<MeshError> {
     None
 }
 
-fn read_lossy(path: &Path) -> Option<String> {
-    std::fs::read(path)
-        .ok()
-        .map(|bytes| String::from_utf8_lossy(&bytes).into_owned())
+/// The file's lines as text (invalid UTF-8 replaced), numbered as `GeometryLines` numbers them:
+/// split at `\n`, a final `\r` dropped.
+fn lossy_lines(bytes: &[u8]) -> impl Iterator<Item = std::borrow::Cow<'_, str>> {
+    bytes
+        .strip_suffix(b"\n")
+        .unwrap_or(bytes)
+        .split(|&b| b == b'\n')
+        .map(|line| String::from_utf8_lossy(line.strip_suffix(b"\r").unwrap_or(line)))
 }
 
 /// The statement keyword of an OBJ line: its first whitespace-separated word.

@@ -20,7 +20,7 @@ use ply_rs_bw::ply::{DefaultElement, ElementDef, Encoding, Header, PropertyType,
 
 use super::{MeshError, TriangleMesh};
 
-/// Loads a PLY file as a triangle mesh.
+/// Parses the bytes of a PLY file (`path` names it in errors) as a triangle mesh.
 ///
 /// Accepts ascii and binary (either byte order) files with an element `vertex` holding scalar
 /// properties `x`, `y`, `z` of any numeric type, and optionally an element `face` holding an
@@ -29,9 +29,8 @@ use super::{MeshError, TriangleMesh};
 /// for a missing vertex element or coordinate, `"face K"` for a face with fewer than 3 indices
 /// or an index outside the vertices, `"<element> K"` for a truncated file or a bad ascii value.
 /// A file without faces is an error ("no triangles").
-pub(super) fn load(path: &Path) -> Result<TriangleMesh, MeshError> {
-    let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
-    let (header, body_start) = read_header(path, &bytes)?;
+pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, MeshError> {
+    let (header, body_start) = read_header(path, bytes)?;
     let plan = Plan::new(path, &header)?;
     let body = &bytes[body_start..];
     let (positions, triangles) = match header.encoding {
