@@ -35,6 +35,9 @@ pub use query::{Accelerator, Hit};
 pub use stats::TraversalStats;
 mod brute_force;
 pub mod bvh;
+pub mod cache;
+pub mod grid;
+pub mod scene_accelerators;
 
 pub use brute_force::BruteForce;
 
