@@ -3,5 +3,6 @@
 pub mod bench;
 pub mod build_args;
 pub mod build_compare;
+pub mod experiment;
 pub mod info;
 pub mod trace;
