@@ -2,7 +2,7 @@
 //! rays (coherent and not), wrapped around a BVH layout and around the grid.
 
 use hbv::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
-use hbv::bvh::layout::SkipLayout;
+use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
 use hbv::cache::{LastHitCache, ShadowCache};
 use hbv::geometry::Ray;
 use hbv::glam::Vec3;
@@ -17,7 +17,11 @@ use common::{closed_mesh, mesh_and_rays, soup};
 fn accelerators(mesh: &TriangleMesh) -> Vec<(&'static str, Box<dyn Accelerator>)> {
     let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(mesh);
     vec![
+        ("recursive", Box::new(RecursiveLayout::new(&tree, mesh))),
         ("skip", Box::new(SkipLayout::new(&tree, mesh))),
+        ("ordered", Box::new(OrderedLayout::new(&tree, mesh))),
+        ("wide4", Box::new(Wide4Layout::new(&tree, mesh))),
+        ("wide8", Box::new(Wide8Layout::new(&tree, mesh))),
         (
             "grid",
             Box::new(UniformGrid::new(mesh, GridConfig::default())),
@@ -50,6 +54,19 @@ fn check(mesh: &TriangleMesh, rays: &[Ray]) -> Result<(), TestCaseError> {
             let blocked = reference.occluded(ray);
             prop_assert_eq!(shadow.occluded(ray), blocked, "{} shadow {:?}", name, ray);
             prop_assert_eq!(counted_shadow.occluded_counted(ray, &mut stats), blocked);
+            // The occluder an accelerator reports really blocks the ray.
+            if let Some(prim) = accel.occluder(ray) {
+                let t = mesh.triangle(prim as usize);
+                let alone = TriangleMesh::new(vec![t.p0, t.p1, t.p2], vec![[0, 1, 2]]).unwrap();
+                prop_assert!(
+                    BruteForce::new(&alone).occluded(ray),
+                    "{} occluder {}",
+                    name,
+                    prim
+                );
+            } else {
+                prop_assert!(!blocked, "{} found no occluder", name);
+            }
         }
         prop_assert_eq!(stats.rays, 2 * sequence.len() as u64);
         prop_assert_eq!(shadow.stats(), counted_shadow.stats());
