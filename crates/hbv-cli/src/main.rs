@@ -31,7 +31,8 @@ enum Command {
     /// Build a tree over a mesh and save both in a .hbv file, which info and trace load
     /// in place of a mesh (format: docs/BVH_FILE.md).
     Build(commands::build::BuildCommandArgs),
-    /// Experiments that each answer one question with a table (see BENCHMARKS.md).
+    /// Experiments that each answer one question with a table (see BENCHMARKS.md):
+    /// `seed-claims`, `dynamic`.
     Experiment(commands::experiment::ExperimentArgs),
 }
 

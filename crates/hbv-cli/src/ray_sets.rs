@@ -246,6 +246,58 @@ fn cosine_direction(normal: Vec3, r1: f32, r2: f32) -> Vec3 {
     (radius * phi.cos()) * tangent + (radius * phi.sin()) * bitangent + z * normal
 }
 
+/// Rays a Whitted-style renderer spawns at the hits of its camera rays, each set in the order
+/// of the primary rays that made it (camera rays that miss spawn nothing): the order that gives
+/// caches their coherence.
+#[derive(Clone, Debug, Default)]
+pub struct SecondaryRays {
+    /// Mirror reflections `d − 2 (d·n) n` off the hit triangle; unit directions,
+    /// `[offset, +inf]`.
+    pub reflection: Vec<Ray>,
+    /// Cosine-distributed bounces about the normal facing the incoming ray; `[offset, +inf]`.
+    pub diffuse: Vec<Ray>,
+    /// Segments from the hit point to `stage.light`, as in [`shadow_rays`].
+    pub shadow: Vec<Ray>,
+}
+
+/// The secondary rays of `primary` given its closest `hits` (one per ray, same order). The hit
+/// point is taken from the barycentrics on the triangle (more accurate than `o + t d`); the
+/// diffuse directions draw from `seed`.
+pub fn secondary_rays(
+    mesh: &TriangleMesh,
+    stage: &Stage,
+    primary: &[Ray],
+    hits: &[Option<hbv::Hit>],
+    seed: u64,
+) -> SecondaryRays {
+    let mut rng = Pcg64Mcg::seed_from_u64(seed ^ BOUNCE_STREAM);
+    let mut out = SecondaryRays::default();
+    for (ray, hit) in primary.iter().zip(hits) {
+        let Some(hit) = hit else { continue };
+        let t = mesh.triangle(hit.prim as usize);
+        let point = (1.0 - hit.u - hit.v) * t.p0 + hit.u * t.p1 + hit.v * t.p2;
+        let mut normal = t.scaled_normal().normalize().as_vec3();
+        if normal.dot(ray.direction) > 0.0 {
+            normal = -normal;
+        }
+        let d = ray.direction.normalize();
+        let reflected = d - 2.0 * d.dot(normal) * normal;
+        out.reflection
+            .push(Ray::new(point, reflected).with_interval(stage.offset, f32::INFINITY));
+        let bounce = cosine_direction(normal, rng.random(), rng.random());
+        out.diffuse
+            .push(Ray::new(point, bounce).with_interval(stage.offset, f32::INFINITY));
+        let to_light = stage.light - point;
+        let tmin = stage.offset / to_light.length().max(f32::MIN_POSITIVE);
+        out.shadow
+            .push(Ray::new(point, to_light).with_interval(tmin.min(SHADOW_TMAX), SHADOW_TMAX));
+    }
+    out
+}
+
+/// Seed mix of the bounce directions of [`secondary_rays`].
+const BOUNCE_STREAM: u64 = 0xb0b0_0000_0000_0003;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -314,6 +366,25 @@ mod tests {
         let mean = sum / rays.len() as f64;
         assert!((mean - 2.0 / 3.0).abs() < 0.01, "mean cos θ = {mean}");
         assert!((outward as f64 / rays.len() as f64 - 0.5).abs() < 0.02);
+    }
+
+    #[test]
+    fn secondary_rays_leave_hits_in_primary_order() {
+        let mesh = icosphere(Vec3::ZERO, 1.0, 3);
+        let stage = Stage::new(&mesh.bounds());
+        let primary = primary_rays(&stage, 16, 16);
+        let hits: Vec<_> = primary
+            .iter()
+            .map(|r| hbv::Accelerator::intersect(&hbv::BruteForce::new(&mesh), r))
+            .collect();
+        let s = secondary_rays(&mesh, &stage, &primary, &hits, 1);
+        let n = hits.iter().flatten().count();
+        assert!(n > 0 && s.reflection.len() == n && s.diffuse.len() == n && s.shadow.len() == n);
+        for (r, d) in s.reflection.iter().zip(&s.diffuse) {
+            // On a sphere seen from outside, reflections and bounces leave outwards.
+            assert!((r.origin.length() - 1.0).abs() < 0.02);
+            assert!(r.direction.dot(r.origin) > 0.0 && d.direction.dot(d.origin) > 0.0);
+        }
     }
 
     #[test]

@@ -6,6 +6,8 @@
 //! - [`bvh`]: the build-time tree, its builders, its cost E\[X\] and the layouts that trace it.
 //! - [`query`]: the [`Accelerator`] trait every structure answers, with batch queries.
 //! - [`BruteForce`]: the reference every accelerator is tested against.
+//! - [`grid`]: the uniform grid (3D-DDA, mailboxes); [`cache`]: shadow and last-hit caches;
+//!   [`scene_accelerators`]: one structure per ray type.
 //!
 //! ```
 //! use hbv::bvh::build::{Builder, InsertionBuilder, InsertionConfig};
@@ -35,6 +37,9 @@ pub use query::{Accelerator, Hit};
 pub use stats::TraversalStats;
 mod brute_force;
 pub mod bvh;
+pub mod cache;
+pub mod grid;
+pub mod scene_accelerators;
 
 pub use brute_force::BruteForce;
 

@@ -71,6 +71,18 @@ pub trait Accelerator: Send + Sync {
     /// [`Accelerator::occluded`], adding the work done to `stats`.
     fn occluded_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> bool;
 
+    /// Any hit, returning the triangle that blocks the ray (not necessarily the nearest): what a
+    /// shadow cache remembers. Structures that can report the first triangle found override it;
+    /// the default asks for the closest hit, which costs more than [`Accelerator::occluded`].
+    fn occluder(&self, ray: &Ray) -> Option<u32> {
+        self.intersect(ray).map(|h| h.prim)
+    }
+
+    /// [`Accelerator::occluder`], adding the work done to `stats`.
+    fn occluder_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> Option<u32> {
+        self.intersect_counted(ray, stats).map(|h| h.prim)
+    }
+
     /// Closest hits of many rays, in parallel on the current rayon pool.
     fn intersect_batch(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
         rays.par_iter()
@@ -145,6 +157,12 @@ pub trait TraversalKernel: Send + Sync {
             };
         }
     }
+
+    /// Any hit, returning the blocking triangle, counting into `counter`. The ray is valid.
+    /// Default: the closest hit's triangle; kernels that can stop at the first hit override it.
+    fn any_hit_prim<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
+        self.closest_hit(ray, counter).map(|h| h.prim)
+    }
 }
 
 impl<K: TraversalKernel> Accelerator for K {
@@ -197,5 +215,21 @@ impl<K: TraversalKernel> Accelerator for K {
             self.closest_hit_packet(rays, hits, stats);
         }
         hits
+    }
+
+    #[inline]
+    fn occluder(&self, ray: &Ray) -> Option<u32> {
+        if !ray.is_valid() {
+            return None;
+        }
+        self.any_hit_prim(ray, &mut NoCount)
+    }
+
+    fn occluder_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> Option<u32> {
+        stats.rays += 1;
+        if !ray.is_valid() {
+            return None;
+        }
+        self.any_hit_prim(ray, stats)
     }
 }

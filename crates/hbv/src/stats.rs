@@ -13,6 +13,9 @@ pub trait Counter {
     fn boxes_tested(&mut self, _n: u32) {}
     /// `n` triangles were tested against the ray.
     fn triangles_tested(&mut self, _n: u32) {}
+    /// A triangle was skipped because the ray had already tested it in an earlier cell
+    /// (a mailbox hit; see `grid::Mailbox`).
+    fn mailbox_skipped(&mut self) {}
 }
 
 /// Counts nothing, costs nothing.
@@ -32,6 +35,8 @@ pub struct TraversalStats {
     pub nodes_visited: u64,
     pub boxes_tested: u64,
     pub triangles_tested: u64,
+    /// Triangle tests saved by mailboxes (uniform grid): repeats of a triangle already tested.
+    pub mailbox_skips: u64,
 }
 
 impl TraversalStats {
@@ -63,6 +68,10 @@ impl Counter for TraversalStats {
     fn triangles_tested(&mut self, n: u32) {
         self.triangles_tested += n as u64;
     }
+    #[inline]
+    fn mailbox_skipped(&mut self) {
+        self.mailbox_skips += 1;
+    }
 }
 
 impl AddAssign for TraversalStats {
@@ -71,5 +80,6 @@ impl AddAssign for TraversalStats {
         self.nodes_visited += o.nodes_visited;
         self.boxes_tested += o.boxes_tested;
         self.triangles_tested += o.triangles_tested;
+        self.mailbox_skips += o.mailbox_skips;
     }
 }

@@ -20,7 +20,9 @@ use hbv_cli::ray_sets::{camera_image_size, RaySet, Stage};
 use rayon::ThreadPool;
 use serde::Serialize;
 
-use super::build_args::{load_mesh, thread_pool, BuildArgs, BuilderName, LayoutName};
+use hbv::grid::{GridConfig, UniformGrid};
+
+use super::build_args::{load_mesh, thread_pool, AccelName, BuildArgs, BuilderName, LayoutName};
 
 #[derive(Args)]
 pub struct BenchArgs {
@@ -31,6 +33,9 @@ pub struct BenchArgs {
     pub layouts: Vec<LayoutName>,
     #[command(flatten)]
     pub build: BuildArgs,
+    /// Acceleration structure: the BVH in every --layout, or the uniform grid (with mailboxes).
+    #[arg(long, value_enum, default_value_t = AccelName::Bvh)]
+    pub accel: AccelName,
     /// Threads of the parallel measurement (every layout is also measured on 1 thread); 0 uses
     /// every core.
     #[arg(long, default_value_t = 0)]
@@ -151,21 +156,48 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
 
     let pools = thread_pools(args.threads)?;
     let all_threads = pools.last().expect("at least one pool");
-    let build = args.build.or_builder(BuilderName::BinnedSah);
-    let (tree, build_seconds) = all_threads.install(|| build.build(&mesh));
-
     let mut layouts = Vec::new();
     let mut results = Vec::new();
-    for layout in requested_layouts(&args.layouts) {
-        let (report, measurements) = measure_layout(layout, &tree, &mesh, &sets, &pools, args);
-        layouts.push(report);
-        results.extend(measurements);
-    }
+    let (described, build_seconds) = match args.accel {
+        AccelName::Bvh => {
+            let build = args.build.or_builder(BuilderName::BinnedSah);
+            let (tree, build_seconds) = all_threads.install(|| build.build(&mesh));
+            for layout in requested_layouts(&args.layouts) {
+                let (report, measurements) =
+                    measure_layout(layout, &tree, &mesh, &sets, &pools, args);
+                layouts.push(report);
+                results.extend(measurements);
+            }
+            (build.describe(), build_seconds)
+        }
+        AccelName::Grid => {
+            let start = Instant::now();
+            let grid = all_threads.install(|| UniformGrid::new(&mesh, GridConfig::default()));
+            let build_seconds = start.elapsed().as_secs_f64();
+            let memory_bytes = grid.memory_bytes();
+            let report = LayoutReport {
+                layout: "grid".into(),
+                memory_bytes,
+                layout_seconds: 0.0,
+            };
+            results.extend(measure_accelerator(&grid, &report, &sets, &pools, args));
+            layouts.push(report);
+            let r = grid.shape().map_or([0; 3], |s| s.resolution);
+            let described = format!(
+                "uniform grid {} × {} × {} (λ = {}, mailboxes)",
+                r[0],
+                r[1],
+                r[2],
+                grid.config().lambda
+            );
+            (described, build_seconds)
+        }
+    };
 
     let report = Report {
         mesh: name,
         triangles: mesh.triangle_count(),
-        builder: build.describe(),
+        builder: described,
         load_seconds,
         build_seconds,
         rays_per_set: args.rays,
@@ -201,12 +233,25 @@ fn measure_layout(
         memory_bytes,
         layout_seconds: start.elapsed().as_secs_f64(),
     };
+    let results = measure_accelerator(accel.as_ref(), &report, sets, pools, args);
+    (report, results)
+}
+
+/// Measures `accel` (named and sized by `report`) on every (set, query) case and every pool.
+fn measure_accelerator(
+    accel: &dyn Accelerator,
+    report: &LayoutReport,
+    sets: &[(RaySet, Vec<Ray>)],
+    pools: &[ThreadPool],
+    args: &BenchArgs,
+) -> Vec<Measurement> {
+    let memory_bytes = report.memory_bytes;
     let mut results = Vec::new();
     for (set, query) in CASES {
         let rays = &sets.iter().find(|(s, _)| *s == set).expect("every set").1;
-        let stats = count_tests(accel.as_ref(), rays, query, args.counted_rays);
+        let stats = count_tests(accel, rays, query, args.counted_rays);
         for pool in pools {
-            let (runs, hits) = time_runs(accel.as_ref(), rays, query, pool, args.repeat);
+            let (runs, hits) = time_runs(accel, rays, query, pool, args.repeat);
             results.push(Measurement {
                 layout: report.layout.clone(),
                 ray_set: set.name(),
@@ -224,7 +269,7 @@ fn measure_layout(
             });
         }
     }
-    (report, results)
+    results
 }
 
 /// Writes each set as `DIR/NAME.npz`, creating `DIR` if needed.

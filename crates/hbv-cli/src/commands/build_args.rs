@@ -60,6 +60,15 @@ impl LayoutName {
     }
 }
 
+/// The acceleration structure of `trace` and `bench` (`--accel`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum AccelName {
+    /// A bounding volume hierarchy (see --builder and --layout).
+    Bvh,
+    /// A uniform grid with mailboxes (λ = 2; 3D-DDA traversal).
+    Grid,
+}
+
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum OrderName {
     /// Seeded random permutation (see --seed).

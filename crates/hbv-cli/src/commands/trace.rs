@@ -8,7 +8,10 @@ use clap::Args;
 use hbv_cli::{hit_file, ray_file};
 use serde_json::json;
 
-use super::build_args::{load_scene, thread_pool, BuildArgs, BuilderName, LayoutName};
+use hbv::grid::{GridConfig, UniformGrid};
+use hbv::Accelerator;
+
+use super::build_args::{load_scene, thread_pool, AccelName, BuildArgs, BuilderName, LayoutName};
 
 #[derive(Args)]
 pub struct TraceArgs {
@@ -38,6 +41,9 @@ pub struct TraceArgs {
     /// How the tree is laid out for traversal.
     #[arg(long, value_enum, default_value_t = LayoutName::Wide8)]
     pub layout: LayoutName,
+    /// Acceleration structure: a BVH (--builder, --layout) or a uniform grid.
+    #[arg(long, value_enum, default_value_t = AccelName::Bvh)]
+    pub accel: AccelName,
     /// Print one JSON object of timings instead of text.
     #[arg(long)]
     pub json: bool,
@@ -57,9 +63,34 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     let load_seconds = scene.load_seconds;
     let rays = ray_file::read_rays(&args.rays).context("cannot read rays")?;
     let build = args.build.or_builder(BuilderName::BinnedSah);
-    let (mesh, built, builder_options) = pool.install(|| scene.tree(&build));
-    let (tree, build_seconds) = (built.tree, built.build_seconds + built.optimize_seconds);
-    let accel = args.layout.lay_out(&tree, &mesh);
+    let (mesh, accel, build_seconds, built): (_, Box<dyn Accelerator>, f64, String) =
+        match args.accel {
+            AccelName::Bvh => {
+                let (mesh, built, builder_options) = pool.install(|| scene.tree(&build));
+                let build_seconds = built.build_seconds + built.optimize_seconds;
+                let accel = args.layout.lay_out(&built.tree, &mesh);
+                (mesh, accel, build_seconds, builder_options)
+            }
+            AccelName::Grid => {
+                let mesh = scene.mesh;
+                let start = Instant::now();
+                let grid = pool.install(|| UniformGrid::new(&mesh, GridConfig::default()));
+                let resolution = grid.shape().map_or([0; 3], |s| s.resolution);
+                let described = format!(
+                    "uniform grid {} × {} × {} (λ = {}, mailboxes)",
+                    resolution[0],
+                    resolution[1],
+                    resolution[2],
+                    grid.config().lambda
+                );
+                (
+                    mesh,
+                    Box::new(grid),
+                    start.elapsed().as_secs_f64(),
+                    described,
+                )
+            }
+        };
 
     let start = Instant::now();
     let hits = if args.occluded {
@@ -89,6 +120,7 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
             "mesh": args.mesh.display().to_string(),
             "triangles": mesh.triangle_count(),
             "query": if args.occluded { "occluded" } else { "closest" },
+            "accel": built,
             "threads": pool.current_num_threads(),
             "rays": rays.len(),
             "hits": hit_count,
@@ -110,7 +142,7 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
             mesh.triangle_count()
         );
         println!("load      {load_seconds:.3} s");
-        println!("build     {build_seconds:.3} s ({builder_options})");
+        println!("build     {build_seconds:.3} s ({built})");
         println!("trace     {trace_seconds:.3} s, {} rays ({query}), {hit_count} hit, {:.3} Mrays/s on {} threads", rays.len(), rays_per_second / 1e6, pool.current_num_threads());
         println!("wrote     {}", args.out.display());
     }

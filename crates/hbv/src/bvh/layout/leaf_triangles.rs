@@ -61,17 +61,22 @@ impl LeafTriangles {
         }
     }
 
-    /// Whether any triangle of the leaf starting at `first` is hit.
+    /// The face id of the first triangle of the leaf starting at `first` that is hit, if any.
     #[inline]
-    pub fn any_hit<C: Counter>(&self, first: u32, ray: &PreparedRay, counter: &mut C) -> bool {
+    pub fn first_hit<C: Counter>(
+        &self,
+        first: u32,
+        ray: &PreparedRay,
+        counter: &mut C,
+    ) -> Option<u32> {
         let mut i = first as usize;
         loop {
             counter.triangles_tested(1);
             if self.triangles[i].intersect(ray).is_some() {
-                return true;
+                return Some(self.ids[i] & !LAST_IN_LEAF);
             }
             if self.ids[i] & LAST_IN_LEAF != 0 {
-                return false;
+                return None;
             }
             i += 1;
         }
@@ -109,18 +114,19 @@ pub(crate) fn closest_hit_in_leaves<L: LeafVisitingLayout, C: Counter>(
     best
 }
 
-/// Any hit through a [`LeafVisitingLayout`]: the first leaf with a hit ends the traversal.
+/// Any hit through a [`LeafVisitingLayout`]: the first leaf with a hit ends the traversal;
+/// returns the face id of the triangle found.
 #[inline]
 pub(crate) fn any_hit_in_leaves<L: LeafVisitingLayout, C: Counter>(
     layout: &L,
     ray: &Ray,
     counter: &mut C,
-) -> bool {
+) -> Option<u32> {
     let mut prepared = PreparedRay::new(ray);
-    let mut found = false;
+    let mut found = None;
     layout.traverse(&mut prepared, counter, |first, ray, counter| {
-        found = layout.leaves().any_hit(first, ray, counter);
-        found
+        found = layout.leaves().first_hit(first, ray, counter);
+        found.is_some()
     });
     found
 }

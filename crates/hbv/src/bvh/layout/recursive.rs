@@ -166,13 +166,18 @@ impl TraversalKernel for RecursiveLayout {
     }
 
     fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
+        self.any_hit_prim(ray, counter).is_some()
+    }
+
+    fn any_hit_prim<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
         let mut prepared = PreparedRay::new(ray);
-        let mut found = false;
+        let mut found = None;
         self.traverse::<_, true>(&mut prepared, counter, |ray, range, _| {
-            found = self.triangles[range]
-                .iter()
-                .any(|t| t.intersect(ray).is_some());
-            found
+            found = range
+                .into_iter()
+                .find(|&i| self.triangles[i].intersect(ray).is_some())
+                .map(|i| self.prim_ids[i]);
+            found.is_some()
         });
         found
     }

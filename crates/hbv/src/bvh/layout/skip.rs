@@ -117,6 +117,10 @@ impl TraversalKernel for SkipLayout {
     }
 
     fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
+        any_hit_in_leaves(self, ray, counter).is_some()
+    }
+
+    fn any_hit_prim<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
         any_hit_in_leaves(self, ray, counter)
     }
 }

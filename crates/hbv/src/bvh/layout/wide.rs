@@ -393,17 +393,20 @@ impl<const W: usize> WideLayout<W> {
     }
 
     #[inline(always)]
-    fn any_hit_with<C: Counter, K: BoxKernel<W>>(&self, ray: &Ray, counter: &mut C) -> bool {
+    fn any_hit_with<C: Counter, K: BoxKernel<W>>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
         let mut prepared = PreparedRay::new(ray);
-        let mut found = false;
+        let mut found = None;
         self.traverse::<C, K, false>(&mut prepared, counter, |first, count, ray, counter| {
-            found = self.packets[first..first + count].iter().any(|packet| {
-                counter.triangles_tested(4);
-                packet
-                    .candidate_lanes(ray)
-                    .any(|lane| packet.triangle(lane).intersect(ray).is_some())
-            });
-            found
+            found = self.packets[first..first + count]
+                .iter()
+                .find_map(|packet| {
+                    counter.triangles_tested(4);
+                    packet
+                        .candidate_lanes(ray)
+                        .find(|&lane| packet.triangle(lane).intersect(ray).is_some())
+                        .map(|lane| packet.ids[lane])
+                });
+            found.is_some()
         });
         found
     }
@@ -418,7 +421,7 @@ impl<const W: usize> WideLayout<W> {
     /// The any-hit traversal compiled with AVX. Call only when the CPU has AVX.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
-    unsafe fn any_hit_avx<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
+    unsafe fn any_hit_avx<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
         self.any_hit_with::<C, AvxBoxes>(ray, counter)
     }
 }
@@ -434,6 +437,10 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
     }
 
     fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
+        self.any_hit_prim(ray, counter).is_some()
+    }
+
+    fn any_hit_prim<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
         #[cfg(target_arch = "x86_64")]
         if W == 8 && self.use_avx {
             // SAFETY: `use_avx` is set only when the CPU reported AVX.
