@@ -28,6 +28,8 @@ enum Command {
     /// Every builder on one table: build time, tree shape, predicted cost E[X] and the tests
     /// actually counted on isotropic lines and real rays.
     BuildCompare(commands::build_compare::BuildCompareArgs),
+    /// Render a scene (or the built-in Cornell box) to PNG/OpenEXR, with passes and heatmaps.
+    Render(commands::render::RenderArgs),
 }
 
 fn main() -> ExitCode {
@@ -58,6 +60,7 @@ fn main() -> ExitCode {
         Command::Trace(args) => commands::trace::run(&args),
         Command::Bench(args) => commands::bench::run(&args),
         Command::BuildCompare(args) => commands::build_compare::run(&args),
+        Command::Render(args) => commands::render::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -4,4 +4,5 @@ pub mod bench;
 pub mod build_args;
 pub mod build_compare;
 pub mod info;
+pub mod render;
 pub mod trace;
