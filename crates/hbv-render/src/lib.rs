@@ -12,14 +12,14 @@
 //!
 //! ```
 //! use std::sync::Arc;
-//! use hbv::bvh::build::{BinnedSahBuilder, Builder};
+//! use hbv::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
 //! use hbv::bvh::layout::Wide8Layout;
 //! use hbv_render::{render, RenderConfig, Scene, SceneTracer};
 //!
 //! let mut scene = Scene::cornell_box();
 //! scene.settings.width = 16;
 //! scene.settings.height = 12;
-//! let tree = BinnedSahBuilder::default().build(&scene.mesh);
+//! let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&scene.mesh);
 //! let bvh: Arc<dyn hbv::Accelerator> = Arc::new(Wide8Layout::new(&tree, &scene.mesh));
 //! let tracer = SceneTracer::new(bvh.clone(), bvh);
 //! let frame = render(&scene, &tracer, &RenderConfig::default());
