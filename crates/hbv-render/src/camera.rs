@@ -31,6 +31,16 @@ pub struct CameraRays {
 }
 
 impl Camera {
+    /// A placeholder (at the origin, looking down −z) for scenes that frame themselves later.
+    pub fn default_for_bounds() -> Self {
+        Camera {
+            position: Vec3::ZERO,
+            look_at: -Vec3::Z,
+            up: Vec3::Y,
+            fov_y_degrees: 45.0,
+        }
+    }
+
     /// The frame for a `width × height` image. The caller has checked that position, look-at and
     /// up span a frame (see [`Camera::frame_error`]).
     pub fn rays(&self, width: u32, height: u32) -> CameraRays {

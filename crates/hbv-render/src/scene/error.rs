@@ -21,6 +21,13 @@ pub enum SceneError {
         key: String,
         reason: String,
     },
+    #[error("{}: {place}: {reason}", file.display())]
+    Gltf {
+        file: PathBuf,
+        /// `node 3`, `meshes`, ...
+        place: String,
+        reason: String,
+    },
     #[error("{}: line {line}: {key}: cannot load mesh: {error}", file.display())]
     Mesh {
         file: PathBuf,
@@ -35,7 +42,7 @@ impl SceneError {
     /// The line the error is on, for errors about the file's content.
     pub fn line(&self) -> Option<usize> {
         match self {
-            SceneError::Io { .. } => None,
+            SceneError::Io { .. } | SceneError::Gltf { .. } => None,
             SceneError::Invalid { line, .. } | SceneError::Mesh { line, .. } => Some(*line),
         }
     }
@@ -43,7 +50,7 @@ impl SceneError {
     /// The key the error is about, for errors about the file's content.
     pub fn key(&self) -> Option<&str> {
         match self {
-            SceneError::Io { .. } => None,
+            SceneError::Io { .. } | SceneError::Gltf { .. } => None,
             SceneError::Invalid { key, .. } | SceneError::Mesh { key, .. } => Some(key),
         }
     }

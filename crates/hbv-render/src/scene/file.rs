@@ -108,9 +108,18 @@ struct LightEntry {
     visible: Option<bool>,
 }
 
-/// Reads a scene file; meshes are found relative to the file's folder.
+/// Reads a scene file; meshes are found relative to the file's folder. A `.gltf` or `.glb`
+/// file is read as a whole scene with its own camera, lights and materials
+/// ([`super::load_gltf_scene`]).
 pub fn load_scene(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
     let path = path.as_ref();
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    if matches!(ext.as_deref(), Some("gltf") | Some("glb")) {
+        return super::load_gltf_scene(path);
+    }
     let source = std::fs::read_to_string(path).map_err(|error| SceneError::Io {
         file: path.to_path_buf(),
         error,

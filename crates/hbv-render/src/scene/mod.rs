@@ -6,6 +6,7 @@
 mod cornell_box;
 mod error;
 mod file;
+mod gltf_scene;
 mod transform;
 
 use glam::Vec3;
@@ -13,6 +14,7 @@ use hbv::TriangleMesh;
 
 pub use error::SceneError;
 pub use file::load_scene;
+pub use gltf_scene::load_gltf_scene;
 pub use transform::Transform;
 
 use crate::camera::Camera;
