@@ -28,16 +28,28 @@ pub fn scale_colour(t: f32) -> [u8; 3] {
     c
 }
 
+/// The top of the scale: the 99th percentile of the finite values (the largest if that is 0), so
+/// that a few extreme pixels do not darken the rest; larger values take the top colour.
+fn scale_top(values: &[f32]) -> f32 {
+    let mut finite: Vec<f32> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    if finite.is_empty() {
+        return 0.0;
+    }
+    finite.sort_by(f32::total_cmp);
+    let p99 = finite[(finite.len() - 1) * 99 / 100];
+    if p99 > 0.0 {
+        p99
+    } else {
+        finite[finite.len() - 1]
+    }
+}
+
 /// The heatmap of `values` (`width × height`, rows from the top) as RGB8, scaled so that `0` is
-/// black and the largest value the top of the scale, with a legend strip of [`LEGEND_HEIGHT`]
-/// rows below: the colour bar, and under it `0` at the left end and the maximum at the right.
+/// black and the 99th percentile the top of the scale (see `scale_top`), with a legend strip of [`LEGEND_HEIGHT`]
+/// rows below: the colour bar, and under it `0` at the left end and the top value at the right.
 /// Returns the pixels and the image height (`height + LEGEND_HEIGHT`).
 pub fn heatmap_with_legend(values: &[f32], width: u32, height: u32) -> (Vec<u8>, u32) {
-    let max = values
-        .iter()
-        .copied()
-        .filter(|v| v.is_finite())
-        .fold(0.0f32, f32::max);
+    let max = scale_top(values);
     let full_height = height + LEGEND_HEIGHT;
     let mut rgb = Vec::with_capacity((width * full_height * 3) as usize);
     for &v in values {

@@ -190,3 +190,18 @@ fn a_missing_file_is_reported_as_such() {
     assert!(matches!(e, SceneError::Io { .. }));
     assert!(e.to_string().contains("/nonexistent/scene.toml"));
 }
+
+#[test]
+fn the_example_scenes_load_when_shared_scenes_exist() {
+    let examples = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples");
+    let shared = examples.join("../../shared/scenes");
+    if !shared.join("bunny.ply").exists() || !shared.join("dragon.ply").exists() {
+        eprintln!("skipped: ../shared/scenes is not beside the repository");
+        return;
+    }
+    for name in ["bunny.toml", "dragon.toml"] {
+        let scene = load_scene(examples.join(name)).unwrap_or_else(|e| panic!("{e}"));
+        assert!(scene.mesh.triangle_count() > 10_000, "{name}");
+        assert!(!scene.lights.is_empty(), "{name}");
+    }
+}
