@@ -34,6 +34,8 @@ enum Command {
     /// Experiments that each answer one question with a table (see BENCHMARKS.md):
     /// `seed-claims`, `dynamic`.
     Experiment(commands::experiment::ExperimentArgs),
+    /// Render a scene (or the built-in Cornell box) to PNG/OpenEXR, with passes and heatmaps.
+    Render(commands::render::RenderArgs),
 }
 
 fn main() -> ExitCode {
@@ -66,6 +68,7 @@ fn main() -> ExitCode {
         Command::BuildCompare(args) => commands::build_compare::run(&args),
         Command::Build(args) => commands::build::run(&args),
         Command::Experiment(args) => commands::experiment::run(&args),
+        Command::Render(args) => commands::render::run(&args),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

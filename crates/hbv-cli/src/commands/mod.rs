@@ -6,4 +6,5 @@ pub mod build_args;
 pub mod build_compare;
 pub mod experiment;
 pub mod info;
+pub mod render;
 pub mod trace;

@@ -1,0 +1,78 @@
+//! `hbv render` from the outside: the default scene, its output files, refusing to overwrite,
+//! and one-line errors for bad scenes.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn hbv_in(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_hbv"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .expect("the hbv binary runs")
+}
+
+const SMALL: [&str; 7] = ["--width", "32", "--height", "24", "--spp", "1", "--quiet"];
+
+#[test]
+fn default_render_writes_png_passes_and_exr_then_refuses_to_overwrite() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut args = vec!["render"];
+    args.extend(SMALL);
+    args.extend([
+        "--pass", "nodes", "--pass", "depth", "--exr", "out.exr", "--json",
+    ]);
+    let o = hbv_in(dir.path(), &args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(report["width"], 32);
+    assert!(report["by_kind"]["shadow"]["rays"].as_u64().unwrap() > 0);
+    assert!(report["tests_per_ray"].as_f64().unwrap() > 1.0);
+    for f in [
+        "render.png",
+        "render.nodes.png",
+        "render.depth.png",
+        "out.exr",
+    ] {
+        assert!(dir.path().join(f).exists(), "{f}");
+    }
+    let png = image::open(dir.path().join("render.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (32, 24));
+    // The heatmap carries its legend below the image.
+    let heat = image::open(dir.path().join("render.nodes.png")).unwrap();
+    assert!(heat.height() > 24);
+
+    let before = std::fs::read(dir.path().join("render.png")).unwrap();
+    let mut args = vec!["render"];
+    args.extend(SMALL);
+    args.extend(["--max-depth", "2"]);
+    let o = hbv_in(dir.path(), &args);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("render.png already exists"), "{err}");
+    assert_eq!(
+        std::fs::read(dir.path().join("render.png")).unwrap(),
+        before
+    );
+    args.push("--force");
+    assert!(hbv_in(dir.path(), &args).status.success());
+}
+
+#[test]
+fn a_bad_scene_is_one_line_naming_file_line_and_key() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("bad.toml"),
+        "[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\nfov = 40\n\n[[mesh]]\nfile = \"nothing.obj\"\n",
+    )
+    .unwrap();
+    let o = hbv_in(
+        dir.path(),
+        &["render", "bad.toml", "-o", "x.png", "--quiet"],
+    );
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(err.contains("bad.toml: line 7: mesh[0].file"), "{err}");
+    assert!(!dir.path().join("x.png").exists());
+}

@@ -1,0 +1,52 @@
+//! hbv-render: a Whitted-style ray tracer on hbv's accelerators.
+//!
+//! The pieces, in the order a frame flows through them:
+//! - [`scene`]: the TOML scene format, the built-in Cornell box, and [`Scene`]: every mesh of a
+//!   scene merged into one [`hbv::TriangleMesh`] with a material per triangle.
+//! - [`Camera`], [`Light`], [`Material`]: what the scene file describes.
+//! - [`SceneTracer`]: the two places where rays meet the accelerators, one for intersection rays
+//!   and one for shadow rays, counting rays (and optionally work and time) by [`RayKind`].
+//! - [`integrator`]: Whitted's recursion (shadow rays, mirror reflection, Fresnel refraction).
+//! - [`render()`]: tiles in parallel into a [`Film`], with a progress bar.
+//! - [`image_output`]: PNG (8-bit sRGB) and OpenEXR (float) files, passes and cost heatmaps.
+//!
+//! ```
+//! use std::sync::Arc;
+//! use hbv::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
+//! use hbv::bvh::layout::Wide8Layout;
+//! use hbv_render::{render, RenderConfig, Scene, SceneTracer};
+//!
+//! let mut scene = Scene::cornell_box();
+//! scene.settings.width = 16;
+//! scene.settings.height = 12;
+//! let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&scene.mesh);
+//! let bvh: Arc<dyn hbv::Accelerator> = Arc::new(Wide8Layout::new(&tree, &scene.mesh));
+//! let tracer = SceneTracer::new(bvh.clone(), bvh);
+//! let frame = render(&scene, &tracer, &RenderConfig::default());
+//! assert_eq!(frame.film.radiance.len(), 16 * 12);
+//! ```
+
+pub mod camera;
+pub mod color;
+pub mod film;
+pub mod heatmap;
+pub mod image_output;
+pub mod integrator;
+pub mod light;
+pub mod material;
+pub mod optics;
+pub mod progress;
+pub mod ray_kind;
+pub mod render;
+pub mod sampler;
+pub mod scene;
+pub mod tracer;
+
+pub use camera::Camera;
+pub use film::{Film, Pass};
+pub use light::Light;
+pub use material::Material;
+pub use ray_kind::{RayKind, RayStats};
+pub use render::{render, Frame, RenderConfig};
+pub use scene::{RenderSettings, Scene, SceneError};
+pub use tracer::SceneTracer;

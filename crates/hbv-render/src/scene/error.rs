@@ -1,0 +1,57 @@
+//! Why a scene could not be read: always the file, the line and the key.
+
+use std::path::PathBuf;
+
+use hbv::MeshError;
+
+/// An error in a scene file. Every variant names the file; those about its content also name
+/// the line (1-based) and the key (`materials.glass.ior`, `mesh[2].file`, ...).
+#[derive(Debug, thiserror::Error)]
+pub enum SceneError {
+    #[error("{}: cannot read: {error}", file.display())]
+    Io {
+        file: PathBuf,
+        #[source]
+        error: std::io::Error,
+    },
+    #[error("{}: line {line}: {key}: {reason}", file.display())]
+    Invalid {
+        file: PathBuf,
+        line: usize,
+        key: String,
+        reason: String,
+    },
+    #[error("{}: {place}: {reason}", file.display())]
+    Gltf {
+        file: PathBuf,
+        /// `node 3`, `meshes`, ...
+        place: String,
+        reason: String,
+    },
+    #[error("{}: line {line}: {key}: cannot load mesh: {error}", file.display())]
+    Mesh {
+        file: PathBuf,
+        line: usize,
+        key: String,
+        #[source]
+        error: Box<MeshError>,
+    },
+}
+
+impl SceneError {
+    /// The line the error is on, for errors about the file's content.
+    pub fn line(&self) -> Option<usize> {
+        match self {
+            SceneError::Io { .. } | SceneError::Gltf { .. } => None,
+            SceneError::Invalid { line, .. } | SceneError::Mesh { line, .. } => Some(*line),
+        }
+    }
+
+    /// The key the error is about, for errors about the file's content.
+    pub fn key(&self) -> Option<&str> {
+        match self {
+            SceneError::Io { .. } | SceneError::Gltf { .. } => None,
+            SceneError::Invalid { key, .. } | SceneError::Mesh { key, .. } => Some(key),
+        }
+    }
+}

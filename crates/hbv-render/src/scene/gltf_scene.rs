@@ -1,0 +1,173 @@
+//! glTF 2.0 files as whole scenes: their meshes with their materials, their camera and their
+//! `KHR_lights_punctual` lights, rendered as the file describes them.
+//!
+//! Materials map onto the Whitted models: `KHR_materials_transmission` (factor ≥ 0.5) is glass of
+//! the `KHR_materials_ior` index (default 1.5); metallic ≥ 0.9 with roughness ≤ 0.1 is a mirror of
+//! the base colour; anything else is Phong with the base colour, a specular lobe whose exponent
+//! falls with roughness (`2/r⁴ − 2`, the Blinn–Beckmann correspondence of Walter et al. 2007,
+//! capped at 1000). Spot lights are treated as point lights (their cone is ignored). Intensities
+//! are taken as given (candela, lux) as radiometric units.
+
+use std::path::Path;
+
+use glam::{Mat4, Vec3};
+use hbv::TriangleMesh;
+
+use super::{RenderSettings, Scene, SceneAssembly, SceneError, Transform};
+use crate::camera::Camera;
+use crate::light::Light;
+use crate::material::{Material, Surface};
+
+/// Reads a `.gltf` or `.glb` file as a scene (see the module's documentation). Without a camera
+/// the scene is seen from +z, framing its bounds; without lights it gets one directional light
+/// from above and behind the viewer.
+pub fn load_gltf_scene(path: &Path) -> Result<Scene, SceneError> {
+    let error = |place: &str, reason: String| SceneError::Gltf {
+        file: path.to_path_buf(),
+        place: place.to_string(),
+        reason,
+    };
+    let (document, buffers, _images) =
+        gltf::import(path).map_err(|e| error("file", e.to_string()))?;
+    let gltf_scene = document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+        .ok_or_else(|| error("scenes", "the file has no scene".into()))?;
+
+    let mut materials: Vec<Material> = document.materials().map(|m| material(&m)).collect();
+    let default_material = materials.len() as u32;
+    materials.push(Material::default_diffuse());
+
+    let mut assembly = SceneAssembly::default();
+    let mut camera = None;
+    let mut lights = Vec::new();
+    let mut stack: Vec<(gltf::Node, Mat4)> =
+        gltf_scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+    while let Some((node, parent)) = stack.pop() {
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        let place = format!("node {}", node.index());
+        if let Some(mesh) = node.mesh() {
+            for primitive in mesh.primitives() {
+                if primitive.mode() != gltf::mesh::Mode::Triangles {
+                    continue; // points and lines have no surface to hit
+                }
+                let reader = primitive.reader(|b| Some(&buffers[b.index()]));
+                let positions: Vec<Vec3> = reader
+                    .read_positions()
+                    .ok_or_else(|| error(&place, "a primitive has no POSITION".into()))?
+                    .map(|p| world.transform_point3(Vec3::from(p)))
+                    .collect();
+                let flat: Vec<u32> = match reader.read_indices() {
+                    Some(i) => i.into_u32().collect(),
+                    None => (0..positions.len() as u32).collect(),
+                };
+                let indices = flat.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+                let triangles = TriangleMesh::new(positions, indices)
+                    .map_err(|e| error(&place, e.to_string()))?;
+                let m = primitive
+                    .material()
+                    .index()
+                    .map_or(default_material, |i| i as u32);
+                let name = mesh.name().unwrap_or("mesh").to_string();
+                assembly
+                    .add(
+                        name,
+                        &triangles,
+                        &Transform::default(),
+                        m,
+                        has_normals(&primitive),
+                    )
+                    .map_err(|reason| error(&place, reason.into()))?;
+            }
+        }
+        if let (None, Some(c)) = (&camera, node.camera()) {
+            if let gltf::camera::Projection::Perspective(p) = c.projection() {
+                let position = world.transform_point3(Vec3::ZERO);
+                camera = Some(Camera {
+                    position,
+                    look_at: position + world.transform_vector3(-Vec3::Z),
+                    up: world.transform_vector3(Vec3::Y),
+                    fov_y_degrees: p.yfov().to_degrees(),
+                });
+            }
+        }
+        if let Some(light) = node.light() {
+            let power = Vec3::from(light.color()) * light.intensity();
+            lights.push(match light.kind() {
+                gltf::khr_lights_punctual::Kind::Directional => Light::Directional {
+                    direction: world
+                        .transform_vector3(-Vec3::Z)
+                        .try_normalize()
+                        .unwrap_or(-Vec3::Y),
+                    irradiance: power,
+                },
+                _ => Light::Point {
+                    position: world.transform_point3(Vec3::ZERO),
+                    intensity: power,
+                },
+            });
+        }
+        stack.extend(node.children().map(|c| (c, world)));
+    }
+    if assembly.triangle_count() == 0 {
+        return Err(error("meshes", "the scene has no triangles".into()));
+    }
+    let settings = RenderSettings {
+        ambient: Vec3::splat(0.03),
+        ..RenderSettings::default()
+    };
+    let mut scene = assembly.finish(materials, Camera::default_for_bounds(), lights, settings);
+    let bounds = scene.mesh.bounds();
+    let (centre, radius) = (
+        (bounds.min + bounds.max) / 2.0,
+        ((bounds.max - bounds.min).length() / 2.0).max(1e-6),
+    );
+    scene.camera = match camera.filter(|c| c.frame_error().is_none()) {
+        Some(c) => c,
+        None => Camera {
+            position: centre + Vec3::new(0.0, 0.3 * radius, 2.6 * radius),
+            look_at: centre,
+            up: Vec3::Y,
+            fov_y_degrees: 45.0,
+        },
+    };
+    if scene.lights.is_empty() {
+        scene.lights.push(Light::Directional {
+            direction: Vec3::new(-0.3, -1.0, -0.5).normalize(),
+            irradiance: Vec3::splat(2.5),
+        });
+    }
+    Ok(scene)
+}
+
+/// Smooth shading when the file gives vertex normals (we interpolate our own, area-weighted).
+fn has_normals(primitive: &gltf::Primitive) -> bool {
+    primitive.get(&gltf::Semantic::Normals).is_some()
+}
+
+fn material(m: &gltf::Material) -> Material {
+    let pbr = m.pbr_metallic_roughness();
+    let [r, g, b, _] = pbr.base_color_factor();
+    let base = Vec3::new(r, g, b);
+    let roughness = pbr.roughness_factor().clamp(0.0, 1.0);
+    let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
+    let surface = if transmission >= 0.5 {
+        Surface::Glass {
+            ior: m.ior().filter(|i| i.is_finite() && *i > 0.0).unwrap_or(1.5),
+            tint: base,
+        }
+    } else if pbr.metallic_factor() >= 0.9 && roughness <= 0.1 {
+        Surface::Mirror { reflectance: base }
+    } else {
+        let exponent = (2.0 / roughness.max(0.05).powi(4) - 2.0).clamp(0.0, 1000.0);
+        Surface::Phong {
+            albedo: base * (1.0 - pbr.metallic_factor().clamp(0.0, 1.0)),
+            specular: Vec3::splat(0.04).lerp(base, pbr.metallic_factor().clamp(0.0, 1.0)),
+            exponent,
+        }
+    };
+    Material {
+        surface,
+        emission: Vec3::from(m.emissive_factor()),
+    }
+}

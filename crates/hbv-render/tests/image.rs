@@ -1,0 +1,132 @@
+//! The built-in Cornell box rendered small: compared with the reference image in the repository,
+//! and identical whichever layout, builder and thread count traced it.
+//!
+//! Tolerance against the reference (`tests/reference/cornell_64x48.png`, made by this test with
+//! `HBV_UPDATE_REFERENCE=1`): mean absolute difference at most 0.5 (of 255) per channel, and at
+//! most 1% of the pixels differing by more than 8 in any channel: rounding of transcendental
+//! functions may differ between platforms and move a few edge pixels; the image must not move.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use hbv::bvh::build::{
+    BinnedSahBuilder, BinnedSahConfig, Builder, InsertionBuilder, InsertionConfig, LbvhBuilder,
+    LbvhConfig, MedianBuilder, MedianConfig, SweepSahBuilder, SweepSahConfig,
+};
+use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
+use hbv::bvh::BuildTree;
+use hbv::{Accelerator, BruteForce, TriangleMesh};
+use hbv_render::image_output::pass_image;
+use hbv_render::{render, Frame, Pass, RenderConfig, Scene, SceneTracer};
+
+const WIDTH: u32 = 64;
+const HEIGHT: u32 = 48;
+const SPP: u32 = 2;
+
+fn small_cornell_box() -> Scene {
+    let mut scene = Scene::cornell_box();
+    scene.settings.width = WIDTH;
+    scene.settings.height = HEIGHT;
+    scene.settings.spp = SPP;
+    scene
+}
+
+fn render_with(scene: &Scene, accelerator: Arc<dyn Accelerator>, threads: usize) -> Frame {
+    let tracer = SceneTracer::new(accelerator.clone(), accelerator);
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(|| render(scene, &tracer, &RenderConfig::default()))
+}
+
+fn wide8(scene: &Scene) -> Arc<dyn Accelerator> {
+    let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&scene.mesh);
+    Arc::new(Wide8Layout::new(&tree, &scene.mesh))
+}
+
+fn reference_path() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/reference/cornell_64x48.png")
+}
+
+#[test]
+fn cornell_box_matches_the_reference_image() {
+    let scene = small_cornell_box();
+    let frame = render_with(&scene, wide8(&scene), 2);
+    let image = pass_image(&frame.film, Pass::Beauty);
+    if std::env::var_os("HBV_UPDATE_REFERENCE").is_some() {
+        std::fs::write(reference_path(), image.to_png().unwrap()).unwrap();
+    }
+    let reference = image::open(reference_path())
+        .expect("the reference image is in the repository")
+        .to_rgb8();
+    assert_eq!((reference.width(), reference.height()), (WIDTH, HEIGHT));
+    let diffs: Vec<u32> = reference
+        .as_raw()
+        .iter()
+        .zip(&image.pixels)
+        .map(|(&a, &b)| (a as i32 - b as i32).unsigned_abs())
+        .collect();
+    let mean = diffs.iter().sum::<u32>() as f64 / diffs.len() as f64;
+    let far_pixels = diffs.chunks(3).filter(|c| c.iter().any(|&d| d > 8)).count();
+    assert!(mean <= 0.5, "mean difference {mean:.3} of 255");
+    assert!(
+        far_pixels * 100 <= (WIDTH * HEIGHT) as usize,
+        "{far_pixels} pixels differ by more than 8 of 255"
+    );
+    // Not a blank image: the box is lit, the walls coloured.
+    assert!(image.pixels.iter().map(|&c| c as u64).sum::<u64>() > 64 * 48 * 3 * 40);
+    assert!(
+        frame.stats.rays.iter().all(|&n| n > 0),
+        "every ray kind is cast"
+    );
+}
+
+#[test]
+fn image_is_identical_for_every_layout_builder_and_thread_count() {
+    let scene = small_cornell_box();
+    let expected = render_with(&scene, wide8(&scene), 1).film.radiance;
+    let mesh: &TriangleMesh = &scene.mesh;
+    let trees: Vec<(&str, BuildTree)> = vec![
+        (
+            "insertion",
+            InsertionBuilder::new(InsertionConfig::default()).build(mesh),
+        ),
+        (
+            "binned-sah",
+            BinnedSahBuilder::new(BinnedSahConfig::default()).build(mesh),
+        ),
+        (
+            "sweep-sah",
+            SweepSahBuilder::new(SweepSahConfig::default()).build(mesh),
+        ),
+        (
+            "median",
+            MedianBuilder::new(MedianConfig::default()).build(mesh),
+        ),
+        ("lbvh", LbvhBuilder::new(LbvhConfig::default()).build(mesh)),
+    ];
+    let mut structures: Vec<(String, Arc<dyn Accelerator>)> =
+        vec![("brute force".into(), Arc::new(BruteForce::new(mesh)))];
+    for (name, tree) in &trees {
+        structures.push((
+            format!("{name} recursive"),
+            Arc::new(RecursiveLayout::new(tree, mesh)),
+        ));
+        structures.push((
+            format!("{name} wide4"),
+            Arc::new(Wide4Layout::new(tree, mesh)),
+        ));
+    }
+    let tree = &trees[1].1;
+    structures.push(("skip".into(), Arc::new(SkipLayout::new(tree, mesh))));
+    structures.push(("ordered".into(), Arc::new(OrderedLayout::new(tree, mesh))));
+    for (threads, (name, accelerator)) in [1, 3].iter().cycle().zip(structures) {
+        let film = render_with(&scene, accelerator, *threads).film;
+        // Bit for bit: the same hits, the same samples, the same sums.
+        assert!(
+            film.radiance == expected,
+            "{name} on {threads} threads renders a different image"
+        );
+    }
+}
