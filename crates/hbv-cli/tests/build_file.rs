@@ -60,6 +60,13 @@ fn a_saved_tree_traces_like_brute_force_and_info_reads_it() {
         std::fs::metadata(&saved).unwrap().len()
     );
 
+    let out = hbv(&["info", p(&saved), "--builder", "lbvh"]);
+    assert!(!out.status.success());
+    assert!(
+        stderr(&out).contains("holds a saved tree: --builder"),
+        "{}",
+        stderr(&out)
+    );
     let out = hbv(&["info", p(&saved), "--json"]);
     assert!(out.status.success(), "{}", stderr(&out));
     let info: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();

@@ -305,3 +305,49 @@ proptest! {
         assert_agrees(&mesh, &RecursiveLayout::new(&loaded.tree, &loaded.mesh), &rays)?;
     }
 }
+
+#[test]
+fn every_structural_check_has_its_message() {
+    let file = sample();
+    let bytes = file.to_bytes();
+    let n = (bytes.len() - node_offset(&file, 0) - 4 * file.mesh.triangle_count()) / 32;
+    let field = |bytes: &[u8], k: usize, at: usize| {
+        let o = node_offset(&file, k) + at;
+        u32::from_le_bytes(bytes[o..o + 4].try_into().unwrap())
+    };
+    let edit = |k: usize, at: usize, value: u32, want: &str| {
+        let mut bad = bytes.clone();
+        let o = node_offset(&file, k) + at;
+        bad[o..o + 4].copy_from_slice(&value.to_le_bytes());
+        reseal(&mut bad);
+        assert_fails(&bad, want);
+    };
+    let is_leaf = |k: usize| field(&bytes, k, 28) & (1 << 31) != 0;
+    let count = |k: usize| field(&bytes, k, 28) & !(1 << 31);
+    // The root's children are 1 and 2, and node 1's come next: a root claiming one more child
+    // shares it with node 1.
+    assert!(!is_leaf(0) && !is_leaf(1) && count(0) == 2 && field(&bytes, 0, 24) == 1);
+    edit(0, 28, 3, "node 1: child 3 has two parents");
+    let leaves: Vec<usize> = (0..n).filter(|&k| is_leaf(k)).collect();
+    let (a, b) = (leaves[0], leaves[1]);
+    edit(b, 24, field(&bytes, a, 24), "is used twice");
+    let wide = *leaves.iter().find(|&&k| count(k) >= 2).unwrap();
+    edit(
+        wide,
+        28,
+        (count(wide) - 1) | (1 << 31),
+        "belongs to no leaf",
+    );
+    edit(wide, 28, 1 << 31, "is empty");
+
+    let mut bad = bytes.clone();
+    bad[16..20].copy_from_slice(&65u32.to_le_bytes());
+    reseal_header(&mut bad);
+    assert_fails(&bad, "header: header size is not 64");
+
+    let mut bad = saved(&hbv::TriangleMesh::default(), BuildTree::new()).to_bytes();
+    bad[48..56].copy_from_slice(&1u64.to_le_bytes());
+    bad.extend_from_slice(&0u32.to_le_bytes());
+    reseal(&mut bad);
+    assert_fails(&bad, "leaf entries: present in a file without nodes");
+}

@@ -284,6 +284,20 @@ pub fn load_scene(path: Option<&Path>) -> anyhow::Result<Scene> {
 }
 
 impl Scene {
+    /// Refuses building options given with a saved tree, which would otherwise be ignored.
+    pub fn check_build_options(&self, build: &BuildArgs) -> anyhow::Result<()> {
+        if self.saved.is_some()
+            && (build.builder.is_some() || build.optimize || build.leaf_size.is_some())
+        {
+            anyhow::bail!(
+                "{} holds a saved tree: --builder, --optimize and --leaf-size apply only to meshes \
+                 (rebuild it with `hbv build`)",
+                self.name
+            );
+        }
+        Ok(())
+    }
+
     /// The saved tree, or one built over the mesh with `build`; with the build report and a
     /// description of how the tree was made.
     pub fn tree(self, build: &BuildArgs) -> (TriangleMesh, BuildReport, String) {

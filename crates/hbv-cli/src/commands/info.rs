@@ -22,6 +22,7 @@ pub struct InfoArgs {
 
 pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     let scene = load_scene(args.mesh.as_deref())?;
+    scene.check_build_options(&args.build)?;
     let (name, load_seconds, saved) = (
         scene.name.clone(),
         scene.load_seconds,

@@ -60,6 +60,7 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     }
     let pool = thread_pool(args.threads)?;
     let scene = load_scene(Some(&args.mesh))?;
+    scene.check_build_options(&args.build)?;
     let load_seconds = scene.load_seconds;
     let rays = ray_file::read_rays(&args.rays).context("cannot read rays")?;
     let build = args.build.or_builder(BuilderName::BinnedSah);

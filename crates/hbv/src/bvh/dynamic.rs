@@ -19,6 +19,32 @@
 //! a scene that changes every frame needs. For many rays between changes, lay the tree out once
 //! into any layout: `RecursiveLayout::new(dynamic.tree(), &dynamic.mesh())` (the ids agree:
 //! [`DynamicBvh::mesh`] keeps every id at its index, freed ones as degenerate triangles).
+//!
+//! ```
+//! use hbv::bvh::dynamic::{DynamicBvh, DynamicConfig};
+//! use hbv::geometry::Ray;
+//! use hbv::glam::Vec3;
+//! use hbv::Accelerator;
+//!
+//! let mut scene = DynamicBvh::new(DynamicConfig::default());
+//! let quad = [
+//!     [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0)],
+//!     [Vec3::new(-1.0, -1.0, 0.0), Vec3::new(1.0, 1.0, 0.0), Vec3::new(-1.0, 1.0, 0.0)],
+//! ];
+//! let ids = scene.insert(&quad).unwrap();
+//! let down = Ray::new(Vec3::new(0.5, -0.5, 5.0), -Vec3::Z);
+//! assert_eq!(scene.intersect(&down).unwrap().prim, ids[0]);
+//!
+//! // Lift the first triangle by 1, then let the tree follow.
+//! let lifted = quad[0].map(|p| p + Vec3::Z);
+//! scene.set_triangle(ids[0], lifted).unwrap();
+//! scene.refit();
+//! assert_eq!(scene.intersect(&down).unwrap().t, 4.0);
+//!
+//! scene.remove(&[ids[0]]).unwrap();
+//! assert!(scene.intersect(&down).is_none());
+//! scene.validate().unwrap();
+//! ```
 
 use std::cmp::Reverse;
 use std::collections::BinaryHeap;
