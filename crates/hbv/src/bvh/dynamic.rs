@@ -435,7 +435,11 @@ impl DynamicBvh {
         counter: &mut C,
         mut visit_leaf: impl FnMut(&mut PreparedRay, &[u32]) -> bool,
     ) {
-        let mut stack: Vec<NodeId> = self.tree.root().into_iter().collect();
+        let Some(root) = self.tree.root() else {
+            return;
+        };
+        ray.bound_errors_within(&self.tree.node(root).bounds);
+        let mut stack: Vec<NodeId> = vec![root];
         while let Some(id) = stack.pop() {
             let node = self.tree.node(id);
             counter.boxes_tested(1);

@@ -101,8 +101,8 @@ impl Aabb {
         let (near, far) = self.slab_distances(ray);
         // Scaling (not adding |x| · slack) keeps infinities infinite instead of making NaN.
         const SLACK: f32 = PreparedRay::BOX_SLACK;
-        let near = (near * if near > 0.0 { 1.0 - SLACK } else { 1.0 + SLACK }).max(ray.tmin);
-        let far = (far * if far > 0.0 { 1.0 + SLACK } else { 1.0 - SLACK }).min(ray.tmax);
+        let near = (near * if near > 0.0 { 1.0 - SLACK } else { 1.0 + SLACK }).max(ray.box_tmin());
+        let far = (far * if far > 0.0 { 1.0 + SLACK } else { 1.0 - SLACK }).min(ray.box_tmax());
         (near <= far).then_some((near, far))
     }
 

@@ -1,5 +1,7 @@
 use glam::Vec3;
 
+use super::Aabb;
+
 /// A ray `o + t d` with its valid interval: a hit at `t` counts when `tmin <= t <= tmax`.
 ///
 /// `direction` need not be unit length; `t` is measured in its units (as in Embree and
@@ -67,6 +69,8 @@ pub struct PreparedRay {
     pub(crate) ky: usize,
     pub(crate) kz: usize,
     pub(crate) shear: Vec3,
+    /// Absolute widening of `[tmin, tmax]` for box tests; see [`PreparedRay::bound_errors_within`].
+    pub(crate) box_margin: f32,
 }
 
 impl PreparedRay {
@@ -103,7 +107,44 @@ impl PreparedRay {
             ky,
             kz,
             shear,
+            box_margin: 0.0,
         }
+    }
+
+    /// Prepares the ray's box tests for triangles inside `scene` (a tree's root box).
+    ///
+    /// A triangle test accepts a hit when its *computed* `t` lies in `[tmin, tmax]`; the computed
+    /// `t` differs from the exact one by up to a few ulps of the triangle's coordinates relative to
+    /// the origin, scaled by the shear `1/|d_kz|` (Woop et al. 2013, §4; pbrt-v4 §6.8.4 bounds the
+    /// same error). For a hit much nearer than those coordinates are large — a ray leaving a
+    /// surface, a short shadow segment — that error exceeds the relative widening of the box test
+    /// ([`PreparedRay::BOX_SLACK`]): a box entered at the hit point could then be culled by a
+    /// `tmax` set to the computed `t`. The box tests therefore use `[tmin - m, tmax + m]` with
+    ///
+    /// ```text
+    ///   m = 2^-18 · (max |o| + max |scene|) / |d_kz|
+    /// ```
+    ///
+    /// (2^-18 is 32 ulps of 1: several times the triangle test's error bound). The margin only
+    /// lets the traversal visit a little more; the triangle tests keep the exact interval.
+    pub fn bound_errors_within(&mut self, scene: &Aabb) {
+        let scene_size = scene.min.abs().max(scene.max.abs()).max_element();
+        let origin_size = self.origin.abs().max_element();
+        let margin = Self::BOX_SLACK * (origin_size + scene_size) / self.direction[self.kz].abs();
+        // An empty scene (infinite bounds) or overflow: no margin is needed, or none would help.
+        self.box_margin = if margin.is_finite() { margin } else { 0.0 };
+    }
+
+    /// The lower end of the interval the box tests use.
+    #[inline]
+    pub fn box_tmin(&self) -> f32 {
+        self.tmin - self.box_margin
+    }
+
+    /// The upper end of the interval the box tests use.
+    #[inline]
+    pub fn box_tmax(&self) -> f32 {
+        self.tmax + self.box_margin
     }
 }
 

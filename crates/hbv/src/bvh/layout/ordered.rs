@@ -104,6 +104,7 @@ impl LeafVisitingLayout for OrderedLayout {
         let Some(root) = self.nodes.first() else {
             return;
         };
+        ray.bound_errors_within(&root.bounds);
         counter.boxes_tested(1);
         if !root.bounds.hit_by(ray) {
             return;
@@ -143,7 +144,7 @@ impl LeafVisitingLayout for OrderedLayout {
                 None => loop {
                     match stack.pop() {
                         // Entered beyond the closest hit so far: nothing nearer can be there.
-                        Some((n, near)) if near <= ray.tmax => break n,
+                        Some((n, near)) if near <= ray.box_tmax() => break n,
                         Some(_) => continue,
                         None => return,
                     }

@@ -108,9 +108,10 @@ impl RecursiveLayout {
         counter: &mut C,
         mut visit_leaf: impl FnMut(&mut PreparedRay, std::ops::Range<usize>, &mut C) -> bool,
     ) {
-        if self.nodes.is_empty() {
+        let Some(root) = self.nodes.first() else {
             return;
-        }
+        };
+        ray.bound_errors_within(&root.bounds);
         let mut stack: Vec<u32> = Vec::with_capacity(64);
         stack.push(0);
         while let Some(index) = stack.pop() {

@@ -91,6 +91,10 @@ impl LeafVisitingLayout for SkipLayout {
         counter: &mut C,
         mut visit_leaf: impl FnMut(u32, &mut PreparedRay, &mut C) -> bool,
     ) {
+        let Some(root) = self.nodes.first() else {
+            return;
+        };
+        ray.bound_errors_within(&root.bounds);
         let mut i = 0usize;
         while let Some(node) = self.nodes.get(i) {
             counter.boxes_tested(1);

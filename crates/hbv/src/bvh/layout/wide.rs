@@ -168,6 +168,7 @@ impl<const W: usize> WideLayout<W> {
         let Some((root, root_bounds)) = self.root else {
             return;
         };
+        ray.bound_errors_within(&root_bounds);
         counter.boxes_tested(1);
         if !root_bounds.hit_by(ray) {
             return;
@@ -188,8 +189,8 @@ impl<const W: usize> WideLayout<W> {
                 let (mask, entry) = K::test(
                     &self.nodes[current as usize].boxes,
                     &box_ray,
-                    ray.tmin,
-                    ray.tmax,
+                    ray.box_tmin(),
+                    ray.box_tmax(),
                 );
                 let children = &self.nodes[current as usize].children;
                 let mut hits = Lanes(mask);
@@ -230,7 +231,7 @@ impl<const W: usize> WideLayout<W> {
             }
             current = loop {
                 match stack.pop() {
-                    Some((n, near)) if near <= ray.tmax => break n,
+                    Some((n, near)) if near <= ray.box_tmax() => break n,
                     Some(_) => continue,
                     None => return,
                 }

@@ -75,7 +75,7 @@ impl PacketBounds {
         let mut origin_hi = first.origin;
         let mut inv_lo = first.inv_direction;
         let mut inv_hi = first.inv_direction;
-        let mut tmin = first.tmin;
+        let mut tmin = first.box_tmin();
         for r in Lanes(valid).map(|i| &rays[i]) {
             let coherent = r.negative == first.negative
                 && r.inv_direction.is_finite()
@@ -87,7 +87,7 @@ impl PacketBounds {
             origin_hi = origin_hi.max(r.origin);
             inv_lo = inv_lo.min(r.inv_direction);
             inv_hi = inv_hi.max(r.inv_direction);
-            tmin = tmin.min(r.tmin);
+            tmin = tmin.min(r.box_tmin());
         }
         let spread = (origin_hi - origin_lo).max_element();
         // Rejects a NaN spread or diagonal too.
@@ -197,13 +197,14 @@ impl<const W: usize> WideLayout<W> {
         for (i, ray) in rays.iter().enumerate() {
             if ray.is_valid() {
                 prepared[i] = PreparedRay::new(ray);
+                prepared[i].bound_errors_within(&root_bounds);
                 valid |= 1 << i;
             }
         }
         let diagonal = root_bounds.extent().length();
         if let Some(bounds) = PacketBounds::new(&prepared, valid, diagonal) {
             let tmax = Lanes(valid)
-                .map(|i| prepared[i].tmax)
+                .map(|i| prepared[i].box_tmax())
                 .fold(f32::NEG_INFINITY, f32::max);
             counter.boxes_tested(1);
             if !bounds.hits(&root_bounds, tmax) {
@@ -221,7 +222,7 @@ impl<const W: usize> WideLayout<W> {
         let box_rays = prepared.map(|r| BoxRay::new(&r));
         let farthest_tmax = |prepared: &[PreparedRay; PACKET_SIZE], rays: u32| {
             Lanes(rays)
-                .map(|i| prepared[i].tmax)
+                .map(|i| prepared[i].box_tmax())
                 .fold(f32::NEG_INFINITY, f32::max)
         };
         let mut stack: TraversalStack<(u32, u32, f32), 64> = TraversalStack::new();
@@ -248,7 +249,8 @@ impl<const W: usize> WideLayout<W> {
                 for i in Lanes(active) {
                     counter.boxes_tested(W as u32);
                     let ray = &prepared[i];
-                    let (mask, near) = K::test(&node.boxes, &box_rays[i], ray.tmin, ray.tmax);
+                    let (mask, near) =
+                        K::test(&node.boxes, &box_rays[i], ray.box_tmin(), ray.box_tmax());
                     for lane in Lanes(mask) {
                         reached_by[lane] |= 1 << i;
                         entry[lane] = entry[lane].min(near[lane]);
