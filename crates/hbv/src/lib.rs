@@ -38,5 +38,10 @@ pub mod bvh;
 
 pub use brute_force::BruteForce;
 
+pub mod all_hits;
+pub mod proximity;
+
+pub use all_hits::AllHits;
+
 /// The vector types of the API (`Vec3`), re-exported so that users need not match its version.
 pub use glam;
