@@ -19,10 +19,7 @@ use rayon::prelude::*;
 use crate::arrays::{float_array, interval_bound, BoundSlice, Floats, IntervalBound};
 use crate::build_options::BuildOptions;
 use crate::mesh::PyMesh;
-use crate::thread_pool::run_on_threads;
-
-/// Rays or points per rayon task: enough to hide scheduling, few enough to balance many cores.
-const GRAIN: usize = 256;
+use crate::thread_pool::{fill_rows, run_on_threads, GRAIN};
 
 /// A bounding volume hierarchy over a mesh, answering ray and point queries.
 ///
@@ -230,24 +227,20 @@ impl PyBvh {
         let (mut hit, mut t, mut prim) = (vec![false; n], vec![0.0f32; n], vec![0i64; n]);
         let (mut u, mut v) = (vec![0.0f32; n], vec![0.0f32; n]);
         let accel = &*self.accel;
+        let columns = (
+            &mut hit[..],
+            (&mut t[..], (&mut prim[..], (&mut u[..], &mut v[..]))),
+        );
         py.detach(|| {
-            run_on_threads(threads, || {
-                hit.par_chunks_mut(GRAIN)
-                    .zip(t.par_chunks_mut(GRAIN))
-                    .zip(prim.par_chunks_mut(GRAIN))
-                    .zip(u.par_chunks_mut(GRAIN))
-                    .zip(v.par_chunks_mut(GRAIN))
-                    .enumerate()
-                    .for_each(|(chunk, ((((hit, t), prim), u), v))| {
-                        for k in 0..hit.len() {
-                            let found = accel.intersect(&batch.ray(chunk * GRAIN + k));
-                            hit[k] = found.is_some();
-                            t[k] = found.map_or(f32::INFINITY, |h| h.t);
-                            prim[k] = found.map_or(-1, |h| h.prim as i64);
-                            u[k] = found.map_or(0.0, |h| h.u);
-                            v[k] = found.map_or(0.0, |h| h.v);
-                        }
-                    })
+            fill_rows(threads, columns, |first, (hit, (t, (prim, (u, v))))| {
+                for k in 0..hit.len() {
+                    let found = accel.intersect(&batch.ray(first + k));
+                    hit[k] = found.is_some();
+                    t[k] = found.map_or(f32::INFINITY, |h| h.t);
+                    prim[k] = found.map_or(-1, |h| h.prim as i64);
+                    u[k] = found.map_or(0.0, |h| h.u);
+                    v[k] = found.map_or(0.0, |h| h.v);
+                }
             })
         })?;
         let out = PyDict::new(py);
@@ -275,15 +268,10 @@ impl PyBvh {
         let mut occluded = vec![false; batch.len];
         let accel = &*self.accel;
         py.detach(|| {
-            run_on_threads(threads, || {
-                occluded
-                    .par_chunks_mut(GRAIN)
-                    .enumerate()
-                    .for_each(|(chunk, out)| {
-                        for (k, o) in out.iter_mut().enumerate() {
-                            *o = accel.occluded(&batch.ray(chunk * GRAIN + k));
-                        }
-                    })
+            fill_rows(threads, &mut occluded[..], |first, out| {
+                for (k, o) in out.iter_mut().enumerate() {
+                    *o = accel.occluded(&batch.ray(first + k));
+                }
             })
         })?;
         Ok(occluded.into_pyarray(py))
@@ -336,13 +324,17 @@ impl PyBvh {
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
         let batch = args.batch();
-        let counts = py.detach(|| {
-            run_on_threads(threads, || {
-                let rays = batch.rays();
-                self.wide().count_hits_batch(&rays)
+        let mut counts = vec![0i64; batch.len];
+        py.detach(|| {
+            let wide = self.wide();
+            fill_rows(threads, &mut counts[..], |first, out| {
+                let mut hits = Vec::new();
+                for (k, c) in out.iter_mut().enumerate() {
+                    wide.all_hits(&batch.ray(first + k), &mut hits);
+                    *c = hits.len() as i64;
+                }
             })
         })?;
-        let counts: Vec<i64> = counts.into_iter().map(i64::from).collect();
         Ok(counts.into_pyarray(py))
     }
 
@@ -357,14 +349,14 @@ impl PyBvh {
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         let (points, _) = float_array("points", points, Some(3), None)?;
         let points = points.as_slice();
-        let inside = py.detach(|| {
-            run_on_threads(threads, || {
-                let wide = self.wide();
-                points
-                    .par_chunks_exact(3)
-                    .with_min_len(GRAIN)
-                    .map(|p| contains(wide, Vec3::from_slice(p)))
-                    .collect::<Vec<bool>>()
+        let mut inside = vec![false; points.len() / 3];
+        py.detach(|| {
+            let wide = self.wide();
+            fill_rows(threads, &mut inside[..], |first, out| {
+                for (k, o) in out.iter_mut().enumerate() {
+                    let p = &points[3 * (first + k)..3 * (first + k) + 3];
+                    *o = contains(wide, Vec3::from_slice(p));
+                }
             })
         })?;
         Ok(inside.into_pyarray(py))
@@ -383,31 +375,30 @@ impl PyBvh {
     ) -> PyResult<Bound<'py, PyDict>> {
         let points = read_points(points)?;
         let n = points.len();
-        let (mut point, mut distance) = (vec![0.0f64; 3 * n], vec![0.0f64; n]);
+        let (mut point, mut distance) = (vec![[0.0f64; 3]; n], vec![0.0f64; n]);
         let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0f64; n], vec![0.0f64; n]);
+        let columns = (
+            &mut point[..],
+            (&mut distance[..], (&mut prim[..], (&mut u[..], &mut v[..]))),
+        );
         py.detach(|| {
-            run_on_threads(threads, || {
-                let search = self.closest_tree();
-                point
-                    .par_chunks_mut(3 * GRAIN)
-                    .zip(distance.par_chunks_mut(GRAIN))
-                    .zip(prim.par_chunks_mut(GRAIN))
-                    .zip(u.par_chunks_mut(GRAIN))
-                    .zip(v.par_chunks_mut(GRAIN))
-                    .enumerate()
-                    .for_each(|(chunk, ((((point, distance), prim), u), v))| {
-                        for k in 0..distance.len() {
-                            let found = search.closest_point_f64(points[chunk * GRAIN + k]);
-                            let q = found.map_or(DVec3::NAN, |c| c.point);
-                            point[3 * k..3 * k + 3].copy_from_slice(&q.to_array());
-                            distance[k] = found.map_or(f64::INFINITY, |c| c.distance);
-                            prim[k] = found.map_or(-1, |c| c.prim as i64);
-                            u[k] = found.map_or(0.0, |c| c.u);
-                            v[k] = found.map_or(0.0, |c| c.v);
-                        }
-                    })
-            })
+            let search = self.closest_tree();
+            fill_rows(
+                threads,
+                columns,
+                |first, (point, (distance, (prim, (u, v))))| {
+                    for k in 0..point.len() {
+                        let found = search.closest_point_f64(points[first + k]);
+                        point[k] = found.map_or([f64::NAN; 3], |c| c.point.to_array());
+                        distance[k] = found.map_or(f64::INFINITY, |c| c.distance);
+                        prim[k] = found.map_or(-1, |c| c.prim as i64);
+                        u[k] = found.map_or(0.0, |c| c.u);
+                        v[k] = found.map_or(0.0, |c| c.v);
+                    }
+                },
+            )
         })?;
+        let point = point.into_flattened();
         let out = PyDict::new(py);
         out.set_item("point", point.into_pyarray(py).reshape([n, 3])?)?;
         out.set_item("distance", distance.into_pyarray(py))?;
