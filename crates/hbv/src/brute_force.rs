@@ -49,3 +49,25 @@ impl TraversalKernel for BruteForce {
         false
     }
 }
+
+impl crate::all_hits::AllHits for BruteForce {
+    /// Every non-degenerate triangle tested; the reference of the accelerated all-hits queries.
+    fn all_hits(&self, ray: &Ray, hits: &mut Vec<Hit>) {
+        hits.clear();
+        if !ray.is_valid() {
+            return;
+        }
+        let prepared = PreparedRay::new(ray);
+        for (prim, tri) in &self.triangles {
+            if let Some(h) = tri.intersect(&prepared) {
+                hits.push(Hit {
+                    t: h.t,
+                    prim: *prim,
+                    u: h.u,
+                    v: h.v,
+                });
+            }
+        }
+        crate::all_hits::sort_hits(hits);
+    }
+}

@@ -43,5 +43,10 @@ pub mod scene_accelerators;
 
 pub use brute_force::BruteForce;
 
+pub mod all_hits;
+pub mod proximity;
+
+pub use all_hits::AllHits;
+
 /// The vector types of the API (`Vec3`), re-exported so that users need not match its version.
 pub use glam;

@@ -15,6 +15,7 @@ mod recursive;
 mod skip;
 mod stack;
 mod wide;
+mod wide_all_hits;
 mod wide_kernels;
 
 pub use binarize::binarize;

@@ -12,7 +12,7 @@ use crate::bvh::tree::{BuildTree, NodeContent, NodeId};
 use crate::geometry::{Aabb, PreparedRay, Ray};
 use crate::mesh::TriangleMesh;
 use crate::query::{record_closer_hit, Hit, TraversalKernel};
-use crate::stats::Counter;
+use crate::stats::{Counter, NoCount};
 
 /// Bit 31 of a child reference: the child is a leaf.
 const LEAF: u32 = 1 << 31;
@@ -424,6 +424,48 @@ impl<const W: usize> WideLayout<W> {
     #[target_feature(enable = "avx")]
     unsafe fn any_hit_avx<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
         self.any_hit_with::<C, AvxBoxes>(ray, counter)
+    }
+}
+
+impl<const W: usize> WideLayout<W> {
+    /// Calls `visit` with the triangle packets of every leaf whose box the ray's whole interval
+    /// reaches (the interval is never shrunk), in any-hit order: the traversal of the queries
+    /// that want every hit. The ray is valid (checked by the caller).
+    pub(super) fn for_each_leaf_reached(
+        &self,
+        ray: &Ray,
+        mut visit: impl FnMut(&[TrianglePacket], &PreparedRay),
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if W == 8 && self.use_avx {
+            // SAFETY: `use_avx` is set only when the CPU reported AVX.
+            return unsafe { self.for_each_leaf_reached_avx(ray, &mut visit) };
+        }
+        self.for_each_leaf_reached_with::<DefaultBoxes>(ray, &mut visit)
+    }
+
+    #[inline(always)]
+    fn for_each_leaf_reached_with<K: BoxKernel<W>>(
+        &self,
+        ray: &Ray,
+        visit: &mut impl FnMut(&[TrianglePacket], &PreparedRay),
+    ) {
+        let mut prepared = PreparedRay::new(ray);
+        self.traverse::<NoCount, K, false>(&mut prepared, &mut NoCount, |first, count, ray, _| {
+            visit(&self.packets[first..first + count], ray);
+            false
+        });
+    }
+
+    /// The all-leaves traversal compiled with AVX. Call only when the CPU has AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn for_each_leaf_reached_avx(
+        &self,
+        ray: &Ray,
+        visit: &mut impl FnMut(&[TrianglePacket], &PreparedRay),
+    ) {
+        self.for_each_leaf_reached_with::<AvxBoxes>(ray, visit)
     }
 }
 

@@ -1,0 +1,238 @@
+#!/usr/bin/env python3
+"""hbv from Python against embreex, Open3D's RaycastingScene and trimesh's intersectors: the same
+rays and points, one thread and all threads, every ../shared/scenes mesh.
+
+Queries and contenders:
+
+- closest hit, one thread: `hbv.BVH.intersect(threads=1)`, embreex `EmbreeScene.run(output=1)`
+  (Embree 4 from Python, single-threaded), Open3D `cast_rays(nthreads=1)`, trimesh's Embree
+  intersector (`trimesh.ray.ray_pyembree`, `intersects_first`) and trimesh's pure-Python one
+  (`trimesh.ray.ray_triangle`, on the first `--trimesh-rays` rays, and only on meshes of at most
+  100,000 triangles: it takes minutes on the others);
+- closest hit, all threads: `hbv.BVH.intersect()` and Open3D `cast_rays()` (every core);
+- nearest surface point: `hbv.BVH.closest_point` and Open3D `compute_closest_points`, one thread
+  and all threads.
+
+Rays (tmin = 0, tmax = inf for all, since Open3D has no per-ray interval), made from the mesh's
+box (centre c, diagonal D) with a fixed seed:
+
+- `primary`: a pinhole camera at c + (1, 0.6, 0.8) D looking at c, 45° field of view,
+  a square image of N rays (coherent);
+- `random`: from a random point on the sphere of radius D about c towards a uniform point of the
+  box (incoherent; most rays hit).
+
+Points: N uniform in the box grown by 10 % on each side.
+
+Timing: every contender is called once untimed (which also builds Open3D's and Embree's lazy
+structures), then `--repeat` rounds in which each contender runs once, interleaved, so that a
+disturbance on a loaded machine hits all of them alike; the median is reported. Structures are
+built outside the timed span. Answers are checked: the fraction of rays whose hit flag and
+triangle agree with Embree's (ties on shared edges may differ), and the largest distance
+difference with Open3D's closest points.
+
+Usage (setup in bench/python_requirements.txt):
+
+    ../py-bench-venv/bin/python bench/python_compare.py                 # every ../shared/scenes/*.ply
+    ../py-bench-venv/bin/python bench/python_compare.py MESH.ply --rays 262144 --repeat 5 --json out.json
+"""
+
+import argparse
+import json
+import os
+import pathlib
+import statistics
+import sys
+import time
+
+import numpy as np
+
+import hbv
+
+REPO = pathlib.Path(__file__).resolve().parent.parent
+
+
+def parse_args():
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("meshes", nargs="*", type=pathlib.Path,
+                   help="mesh files (default: every *.ply in ../shared/scenes)")
+    p.add_argument("--rays", type=int, default=262_144, help="rays per set (default 262,144)")
+    p.add_argument("--points", type=int, default=65_536, help="closest-point queries (default 65,536)")
+    p.add_argument("--trimesh-rays", type=int, default=1_000,
+                   help="rays given to trimesh's pure-Python intersector (default 1,000)")
+    p.add_argument("--repeat", type=int, default=5, help="timed rounds (default 5)")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--json", type=pathlib.Path, help="also write every figure to this file")
+    return p.parse_args()
+
+
+def default_meshes():
+    scenes = REPO.parent / "shared" / "scenes"
+    if not scenes.is_dir():
+        sys.exit(f"no meshes given and {scenes} does not exist")
+    return sorted(scenes.glob("*.ply"), key=lambda p: p.stat().st_size)
+
+
+def ray_sets(vertices, n, seed):
+    lo, hi = vertices.min(0).astype(np.float64), vertices.max(0).astype(np.float64)
+    c, diag = (lo + hi) / 2, float(np.linalg.norm(hi - lo))
+    # Primary: pinhole camera, square image, y up.
+    side = int(np.ceil(np.sqrt(n)))
+    eye = c + np.array([1.0, 0.6, 0.8]) * diag
+    forward = (c - eye) / np.linalg.norm(c - eye)
+    right = np.cross(forward, [0.0, 1.0, 0.0])
+    right /= np.linalg.norm(right)
+    up = np.cross(right, forward)
+    k = np.arange(n)
+    half = np.tan(np.radians(45.0) / 2)
+    x = ((k % side) + 0.5) / side * 2 - 1
+    y = 1 - ((k // side) + 0.5) / side * 2
+    d = forward + half * (x[:, None] * right + y[:, None] * up)
+    primary = (np.tile(eye, (n, 1)), d / np.linalg.norm(d, axis=1)[:, None])
+    # Random: from the sphere of radius D to a point of the box.
+    rng = np.random.default_rng(seed)
+    s = rng.normal(size=(n, 3))
+    o = c + s / np.linalg.norm(s, axis=1)[:, None] * diag
+    target = lo + (hi - lo) * rng.uniform(size=(n, 3))
+    d = target - o
+    random = (o, d / np.linalg.norm(d, axis=1)[:, None])
+    f32 = lambda od: tuple(np.ascontiguousarray(a, dtype=np.float32) for a in od)
+    return {"primary": f32(primary), "random": f32(random)}
+
+
+def query_points(vertices, n, seed):
+    lo, hi = vertices.min(0).astype(np.float64), vertices.max(0).astype(np.float64)
+    pad = 0.1 * (hi - lo)
+    rng = np.random.default_rng(seed + 1)
+    return np.ascontiguousarray(lo - pad + (hi - lo + 2 * pad) * rng.uniform(size=(n, 3)), np.float32)
+
+
+def time_interleaved(contenders, repeat):
+    """{name: median seconds}: one untimed call each, then `repeat` interleaved rounds."""
+    results = {name: fn() for name, fn in contenders.items()}
+    times = {name: [] for name in contenders}
+    for _ in range(repeat):
+        for name, fn in contenders.items():
+            start = time.perf_counter()
+            fn()
+            times[name].append(time.perf_counter() - start)
+    return {name: statistics.median(t) for name, t in times.items()}, results
+
+
+def compare_mesh(path, args):
+    import open3d as o3d
+    import trimesh
+    from embreex import rtcore_scene
+    from embreex.mesh_construction import TriangleMesh as EmbreeMesh
+    from trimesh.ray.ray_pyembree import RayMeshIntersector as TrimeshEmbree
+    from trimesh.ray.ray_triangle import RayMeshIntersector as TrimeshTriangle
+
+    mesh = hbv.load(path)
+    v, f = mesh.vertices, mesh.faces
+    start = time.perf_counter()
+    bvh = hbv.BVH(mesh)
+    hbv_build = time.perf_counter() - start
+
+    embree = rtcore_scene.EmbreeScene()
+    EmbreeMesh(embree, v[f].astype(np.float32))
+    o3d_scene = o3d.t.geometry.RaycastingScene()
+    o3d_scene.add_triangles(o3d.core.Tensor(v), o3d.core.Tensor(f.astype(np.uint32)))
+    tm = trimesh.Trimesh(vertices=v, faces=f, process=False)
+    tm_embree, tm_triangle = TrimeshEmbree(tm), TrimeshTriangle(tm)
+
+    cores = os.cpu_count()
+    rows = []
+    for set_name, (o, d) in ray_sets(v, args.rays, args.seed).items():
+        o3d_rays = o3d.core.Tensor(np.hstack([o, d]))
+        m = args.trimesh_rays
+        contenders = {
+            "hbv_1": lambda: bvh.intersect(o, d, threads=1),
+            "embreex_1": lambda: embree.run(o, d, output=1),
+            "open3d_1": lambda: o3d_scene.cast_rays(o3d_rays, nthreads=1),
+            "hbv_all": lambda: bvh.intersect(o, d),
+            "open3d_all": lambda: o3d_scene.cast_rays(o3d_rays, nthreads=0),
+            "trimesh_embree_1": lambda: tm_embree.intersects_first(o, d),
+            "trimesh_triangle_1": lambda: tm_triangle.intersects_first(o[:m], d[:m]),
+        }
+        if len(f) > 100_000:
+            # trimesh's pure-Python intersector takes minutes on the large meshes.
+            del contenders["trimesh_triangle_1"]
+        seconds, answers = time_interleaved(contenders, args.repeat)
+        rays_of = lambda name: m if name == "trimesh_triangle_1" else len(o)
+        mrays = {name: rays_of(name) / s / 1e6 for name, s in seconds.items()}
+        ours = answers["hbv_1"]
+        emb = answers["embreex_1"]
+        emb_prim = np.where(emb["geomID"] >= 0, emb["primID"], -1)
+        o3d_prim = answers["open3d_1"]["primitive_ids"].numpy().astype(np.int64)
+        o3d_prim[o3d_prim == 4294967295] = -1
+        rows.append({
+            "mesh": path.name, "triangles": len(f), "set": set_name, "rays": len(o),
+            "hbv_build_s": hbv_build, "mrays_per_s": mrays,
+            "hit_rate": float(ours["hit"].mean()),
+            "same_prim_as_embree": float((ours["prim"] == emb_prim).mean()),
+            "same_prim_as_open3d": float((ours["prim"] == o3d_prim).mean()),
+        })
+        print(f"{path.name} {set_name}: " + ", ".join(f"{k} {x:.2f}" for k, x in mrays.items()),
+              file=sys.stderr)
+
+    points = query_points(v, args.points, args.seed)
+    o3d_points = o3d.core.Tensor(points)
+    seconds, answers = time_interleaved({
+        "hbv_1": lambda: bvh.closest_point(points, threads=1),
+        "open3d_1": lambda: o3d_scene.compute_closest_points(o3d_points, nthreads=1),
+        "hbv_all": lambda: bvh.closest_point(points),
+        "open3d_all": lambda: o3d_scene.compute_closest_points(o3d_points, nthreads=0),
+    }, args.repeat)
+    ours = answers["hbv_1"]["distance"]
+    theirs = np.linalg.norm(answers["open3d_1"]["points"].numpy() - points, axis=1)
+    diag = float(np.linalg.norm(v.max(0) - v.min(0)))
+    closest = {
+        "mesh": path.name, "triangles": len(f), "points": len(points),
+        "mqueries_per_s": {name: len(points) / s / 1e6 for name, s in seconds.items()},
+        "max_distance_difference_over_diagonal": float(np.abs(ours - theirs).max() / diag),
+    }
+    print(f"{path.name} closest point: " + ", ".join(
+        f"{k} {x:.3f}" for k, x in closest["mqueries_per_s"].items()), file=sys.stderr)
+    return rows, closest, cores
+
+
+def print_tables(rows, closest, cores):
+    print(f"\nClosest hit, Mrays/s (one thread = 1; all = {cores} threads); ratios are hbv / other.\n")
+    print("| mesh | triangles | rays | hbv 1 | embreex 1 | **hbv / embreex (1)** | Open3D 1 | hbv all | "
+          "**hbv all / hbv 1** | Open3D all | **hbv / Open3D (all)** | trimesh-embree 1 | "
+          "trimesh-triangle 1 | same prim as Embree |")
+    print("| --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    for r in rows:
+        m = r["mrays_per_s"]
+        tri = f"{m['trimesh_triangle_1']:.4f}" if "trimesh_triangle_1" in m else "—"
+        print(f"| {r['mesh']} | {r['triangles']:,} | {r['set']} | {m['hbv_1']:.2f} | {m['embreex_1']:.2f} | "
+              f"**{m['hbv_1'] / m['embreex_1']:.2f}×** | {m['open3d_1']:.2f} | {m['hbv_all']:.2f} | "
+              f"**{m['hbv_all'] / m['hbv_1']:.2f}×** | {m['open3d_all']:.2f} | "
+              f"**{m['hbv_all'] / m['open3d_all']:.2f}×** | {m['trimesh_embree_1']:.2f} | {tri} | "
+              f"{100 * r['same_prim_as_embree']:.2f} % |")
+    print("\nNearest surface point, M queries/s; ratios are hbv / Open3D.\n")
+    print("| mesh | points | hbv 1 | Open3D 1 | **hbv / Open3D (1)** | hbv all | Open3D all | "
+          "**hbv / Open3D (all)** | max \\|Δ distance\\| / diagonal |")
+    print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
+    for c in closest:
+        q = c["mqueries_per_s"]
+        print(f"| {c['mesh']} | {c['points']:,} | {q['hbv_1']:.3f} | {q['open3d_1']:.3f} | "
+              f"**{q['hbv_1'] / q['open3d_1']:.1f}×** | {q['hbv_all']:.3f} | {q['open3d_all']:.3f} | "
+              f"**{q['hbv_all'] / q['open3d_all']:.1f}×** | {c['max_distance_difference_over_diagonal']:.1e} |")
+
+
+def main():
+    args = parse_args()
+    meshes = args.meshes or default_meshes()
+    rows, closest = [], []
+    cores = os.cpu_count()
+    for path in meshes:
+        r, c, cores = compare_mesh(path, args)
+        rows += r
+        closest.append(c)
+    print_tables(rows, closest, cores)
+    if args.json:
+        args.json.write_text(json.dumps({"cores": cores, "rays": rows, "closest_point": closest}, indent=1))
+
+
+if __name__ == "__main__":
+    main()

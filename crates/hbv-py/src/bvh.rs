@@ -1,0 +1,487 @@
+//! `hbv.BVH`: a tree over a mesh and every query on it, NumPy in and out, on all cores with the
+//! GIL released.
+
+use std::sync::{Arc, OnceLock};
+use std::time::Instant;
+
+use hbv::bvh::layout::Wide8Layout;
+use hbv::bvh::{expected_tests, sah_cost, BuildTree, SahWeights};
+use hbv::geometry::Ray;
+use hbv::glam::{DVec3, Vec3};
+use hbv::proximity::{contains, ClosestPointTree};
+use hbv::{Accelerator, AllHits, TriangleMesh};
+use numpy::{IntoPyArray, PyArray1, PyArrayMethods};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+use rayon::prelude::*;
+
+use crate::arrays::{float_array, interval_bound, BoundSlice, Floats, IntervalBound};
+use crate::build_options::BuildOptions;
+use crate::mesh::PyMesh;
+use crate::thread_pool::{fill_rows, run_on_threads, GRAIN};
+
+/// A bounding volume hierarchy over a mesh, answering ray and point queries.
+///
+/// BVH(mesh, builder="binned-sah", layout=None, optimize=False, leaf_size=None)
+///
+/// builder: "binned-sah" (default), "sweep-sah", "insertion", "median" or "lbvh".
+/// layout: "wide8" (default, the fastest), "wide4", "ordered", "recursive" or "skip".
+/// optimize: reinsertion optimization (Bittner et al. 2013) after building.
+/// leaf_size: most triangles per leaf (1 to 64; default: the builder's).
+#[pyclass(name = "BVH", module = "hbv", frozen)]
+pub struct PyBvh {
+    mesh: Py<PyMesh>,
+    triangles: Arc<TriangleMesh>,
+    options: BuildOptions,
+    tree: BuildTree,
+    accel: Arc<dyn Accelerator>,
+    /// The wide-8 layout of the same tree: the all-hits queries' structure (built on first use
+    /// unless it is the layout).
+    wide: OnceLock<Arc<Wide8Layout>>,
+    /// The nearest-point search tree (built on first use).
+    closest: OnceLock<ClosestPointTree>,
+    build_seconds: f64,
+}
+
+/// The ray arguments of a query, read and checked.
+struct RayArgs<'py> {
+    origins: Floats<'py>,
+    directions: Floats<'py>,
+    tmin: IntervalBound<'py>,
+    tmax: IntervalBound<'py>,
+    len: usize,
+}
+
+/// The rays of a query as slices the worker threads read (no GIL needed).
+#[derive(Clone, Copy)]
+struct RayBatch<'a> {
+    origins: &'a [f32],
+    directions: &'a [f32],
+    tmin: BoundSlice<'a>,
+    tmax: BoundSlice<'a>,
+    len: usize,
+}
+
+impl<'py> RayArgs<'py> {
+    fn read(
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: Option<&Bound<'py, PyAny>>,
+        tmax: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Self> {
+        let (origins, len) = float_array("origins", origins, Some(3), None)?;
+        let (directions, _) =
+            float_array("directions", directions, Some(3), Some((len, "origins")))?;
+        Ok(Self {
+            origins,
+            directions,
+            tmin: interval_bound("tmin", tmin, 0.0, len)?,
+            tmax: interval_bound("tmax", tmax, f32::INFINITY, len)?,
+            len,
+        })
+    }
+
+    fn batch(&self) -> RayBatch<'_> {
+        RayBatch {
+            origins: self.origins.as_slice(),
+            directions: self.directions.as_slice(),
+            tmin: self.tmin.as_slice(),
+            tmax: self.tmax.as_slice(),
+            len: self.len,
+        }
+    }
+}
+
+impl RayBatch<'_> {
+    #[inline]
+    fn ray(&self, i: usize) -> Ray {
+        Ray {
+            origin: Vec3::from_slice(&self.origins[3 * i..3 * i + 3]),
+            direction: Vec3::from_slice(&self.directions[3 * i..3 * i + 3]),
+            tmin: self.tmin.at(i),
+            tmax: self.tmax.at(i),
+        }
+    }
+
+    fn rays(&self) -> Vec<Ray> {
+        (0..self.len)
+            .into_par_iter()
+            .with_min_len(GRAIN)
+            .map(|i| self.ray(i))
+            .collect()
+    }
+}
+
+/// Query points as f64 `(x, y, z)`: float32 or float64 input, shape (N, 3).
+fn read_points(obj: &Bound<'_, PyAny>) -> PyResult<Vec<DVec3>> {
+    let array = obj.py().import("numpy")?.call_method1("asarray", (obj,))?;
+    let kind: String = array.getattr("dtype")?.getattr("kind")?.extract()?;
+    if kind == "f" || kind == "i" || kind == "u" {
+        let as_f64 = array.call_method1("astype", ("float64",))?;
+        if let Ok(a) = as_f64.cast::<numpy::PyArray2<f64>>() {
+            let a = a.readonly();
+            let view = a.as_array();
+            if view.shape()[1] == 3 {
+                return Ok(view
+                    .rows()
+                    .into_iter()
+                    .map(|r| DVec3::new(r[0], r[1], r[2]))
+                    .collect());
+            }
+        }
+    }
+    // Not a float (N, 3) array: let the common reader word the error.
+    float_array("points", obj, Some(3), None)?;
+    Err(PyTypeError::new_err(
+        "points: expected a float array of shape (N, 3)",
+    ))
+}
+
+impl PyBvh {
+    fn wide(&self) -> &Wide8Layout {
+        self.wide
+            .get_or_init(|| Arc::new(Wide8Layout::new(&self.tree, &self.triangles)))
+    }
+
+    fn closest_tree(&self) -> &ClosestPointTree {
+        self.closest
+            .get_or_init(|| ClosestPointTree::new(&self.tree, &self.triangles))
+    }
+}
+
+#[pymethods]
+impl PyBvh {
+    #[new]
+    #[pyo3(signature = (mesh, builder="binned-sah", layout=None, optimize=false, leaf_size=None))]
+    fn new(
+        py: Python<'_>,
+        mesh: &Bound<'_, PyAny>,
+        builder: &str,
+        layout: Option<&str>,
+        optimize: bool,
+        leaf_size: Option<usize>,
+    ) -> PyResult<Self> {
+        let mesh =
+            mesh.cast::<PyMesh>().map_err(|_| {
+                PyTypeError::new_err(format!(
+                "mesh: expected an hbv.Mesh (hbv.Mesh(vertices, faces) or hbv.load(path)), got {}",
+                mesh.get_type().name().map(|n| n.to_string()).unwrap_or_default()
+            ))
+            })?;
+        let options = BuildOptions::new(builder, layout, optimize, leaf_size)?;
+        let triangles = mesh.get().mesh.clone();
+        let (tree, accel, wide, build_seconds) = py.detach(|| {
+            let start = Instant::now();
+            let tree = options.build(&triangles);
+            let (accel, wide) = options.lay_out(&tree, &triangles);
+            (tree, accel, wide, start.elapsed().as_secs_f64())
+        });
+        let wide_cell = OnceLock::new();
+        if let Some(w) = wide {
+            let _ = wide_cell.set(w);
+        }
+        Ok(Self {
+            mesh: mesh.clone().unbind(),
+            triangles,
+            options,
+            tree,
+            accel,
+            wide: wide_cell,
+            closest: OnceLock::new(),
+            build_seconds,
+        })
+    }
+
+    /// The mesh the tree was built over.
+    #[getter]
+    fn mesh(&self, py: Python<'_>) -> Py<PyMesh> {
+        self.mesh.clone_ref(py)
+    }
+
+    #[getter]
+    fn builder(&self) -> &str {
+        &self.options.builder
+    }
+
+    #[getter]
+    fn layout(&self) -> &str {
+        &self.options.layout
+    }
+
+    /// Closest hits: a dict of arrays `hit` (bool), `t` (float32, inf on a miss), `prim`
+    /// (int64, -1 on a miss), `u`, `v` (float32 barycentrics, 0 on a miss), as ../shared/RAYS.md.
+    #[pyo3(signature = (origins, directions, tmin=None, tmax=None, threads=None))]
+    fn intersect<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: Option<&Bound<'py, PyAny>>,
+        tmax: Option<&Bound<'py, PyAny>>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let args = RayArgs::read(origins, directions, tmin, tmax)?;
+        let batch = args.batch();
+        let n = batch.len;
+        let (mut hit, mut t, mut prim) = (vec![false; n], vec![0.0f32; n], vec![0i64; n]);
+        let (mut u, mut v) = (vec![0.0f32; n], vec![0.0f32; n]);
+        let accel = &*self.accel;
+        let columns = (
+            &mut hit[..],
+            (&mut t[..], (&mut prim[..], (&mut u[..], &mut v[..]))),
+        );
+        py.detach(|| {
+            fill_rows(threads, columns, |first, (hit, (t, (prim, (u, v))))| {
+                for k in 0..hit.len() {
+                    let found = accel.intersect(&batch.ray(first + k));
+                    hit[k] = found.is_some();
+                    t[k] = found.map_or(f32::INFINITY, |h| h.t);
+                    prim[k] = found.map_or(-1, |h| h.prim as i64);
+                    u[k] = found.map_or(0.0, |h| h.u);
+                    v[k] = found.map_or(0.0, |h| h.v);
+                }
+            })
+        })?;
+        let out = PyDict::new(py);
+        out.set_item("hit", hit.into_pyarray(py))?;
+        out.set_item("t", t.into_pyarray(py))?;
+        out.set_item("prim", prim.into_pyarray(py))?;
+        out.set_item("u", u.into_pyarray(py))?;
+        out.set_item("v", v.into_pyarray(py))?;
+        Ok(out)
+    }
+
+    /// Any hit: a bool array, true where anything lies in [tmin, tmax] along the ray.
+    #[pyo3(signature = (origins, directions, tmin=None, tmax=None, threads=None))]
+    fn occluded<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: Option<&Bound<'py, PyAny>>,
+        tmax: Option<&Bound<'py, PyAny>>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        let args = RayArgs::read(origins, directions, tmin, tmax)?;
+        let batch = args.batch();
+        let mut occluded = vec![false; batch.len];
+        let accel = &*self.accel;
+        py.detach(|| {
+            fill_rows(threads, &mut occluded[..], |first, out| {
+                for (k, o) in out.iter_mut().enumerate() {
+                    *o = accel.occluded(&batch.ray(first + k));
+                }
+            })
+        })?;
+        Ok(occluded.into_pyarray(py))
+    }
+
+    /// Every hit along each ray, found in one traversal per ray: a tuple of arrays
+    /// (ray index int64, t float32, prim int64), in ray order and, within a ray, sorted by t
+    /// (equal t by prim).
+    #[pyo3(signature = (origins, directions, tmin=None, tmax=None, threads=None))]
+    fn intersect_all<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: Option<&Bound<'py, PyAny>>,
+        tmax: Option<&Bound<'py, PyAny>>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyTuple>> {
+        let args = RayArgs::read(origins, directions, tmin, tmax)?;
+        let batch = args.batch();
+        let hits = py.detach(|| {
+            run_on_threads(threads, || {
+                let rays = batch.rays();
+                self.wide().all_hits_batch(&rays)
+            })
+        })?;
+        let ray: Vec<i64> = hits.iter().map(|(r, _)| *r as i64).collect();
+        let t: Vec<f32> = hits.iter().map(|(_, h)| h.t).collect();
+        let prim: Vec<i64> = hits.iter().map(|(_, h)| h.prim as i64).collect();
+        PyTuple::new(
+            py,
+            [
+                ray.into_pyarray(py).into_any(),
+                t.into_pyarray(py).into_any(),
+                prim.into_pyarray(py).into_any(),
+            ],
+        )
+    }
+
+    /// The number of hits along each ray (int64): the length of its `intersect_all` list.
+    #[pyo3(signature = (origins, directions, tmin=None, tmax=None, threads=None))]
+    fn count<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: Option<&Bound<'py, PyAny>>,
+        tmax: Option<&Bound<'py, PyAny>>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyArray1<i64>>> {
+        let args = RayArgs::read(origins, directions, tmin, tmax)?;
+        let batch = args.batch();
+        let mut counts = vec![0i64; batch.len];
+        py.detach(|| {
+            let wide = self.wide();
+            fill_rows(threads, &mut counts[..], |first, out| {
+                let mut hits = Vec::new();
+                for (k, c) in out.iter_mut().enumerate() {
+                    wide.all_hits(&batch.ray(first + k), &mut hits);
+                    *c = hits.len() as i64;
+                }
+            })
+        })?;
+        Ok(counts.into_pyarray(py))
+    }
+
+    /// Whether each point lies inside the (closed) mesh: bool array. The majority of three
+    /// ray parity votes (see hbv::proximity::inside); points on the surface may go either way.
+    #[pyo3(signature = (points, threads=None))]
+    fn contains<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+        let (points, _) = float_array("points", points, Some(3), None)?;
+        let points = points.as_slice();
+        let mut inside = vec![false; points.len() / 3];
+        py.detach(|| {
+            let wide = self.wide();
+            fill_rows(threads, &mut inside[..], |first, out| {
+                for (k, o) in out.iter_mut().enumerate() {
+                    let p = &points[3 * (first + k)..3 * (first + k) + 3];
+                    *o = contains(wide, Vec3::from_slice(p));
+                }
+            })
+        })?;
+        Ok(inside.into_pyarray(py))
+    }
+
+    /// The nearest surface point to each point: a dict of arrays `point` (N, 3) float64,
+    /// `distance` float64, `prim` int64 (the triangle), `u`, `v` float64 barycentrics (point =
+    /// (1-u-v) p0 + u p1 + v p2). Exact in f64 (equal to a float64 brute force); ties go to the
+    /// smallest triangle id. Non-finite points (or an empty mesh) give NaN, inf, -1, 0, 0.
+    #[pyo3(signature = (points, threads=None))]
+    fn closest_point<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let points = read_points(points)?;
+        let n = points.len();
+        let (mut point, mut distance) = (vec![[0.0f64; 3]; n], vec![0.0f64; n]);
+        let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0f64; n], vec![0.0f64; n]);
+        let columns = (
+            &mut point[..],
+            (&mut distance[..], (&mut prim[..], (&mut u[..], &mut v[..]))),
+        );
+        py.detach(|| {
+            let search = self.closest_tree();
+            fill_rows(
+                threads,
+                columns,
+                |first, (point, (distance, (prim, (u, v))))| {
+                    for k in 0..point.len() {
+                        let found = search.closest_point_f64(points[first + k]);
+                        point[k] = found.map_or([f64::NAN; 3], |c| c.point.to_array());
+                        distance[k] = found.map_or(f64::INFINITY, |c| c.distance);
+                        prim[k] = found.map_or(-1, |c| c.prim as i64);
+                        u[k] = found.map_or(0.0, |c| c.u);
+                        v[k] = found.map_or(0.0, |c| c.v);
+                    }
+                },
+            )
+        })?;
+        let point = point.into_flattened();
+        let out = PyDict::new(py);
+        out.set_item("point", point.into_pyarray(py).reshape([n, 3])?)?;
+        out.set_item("distance", distance.into_pyarray(py))?;
+        out.set_item("prim", prim.into_pyarray(py))?;
+        out.set_item("u", u.into_pyarray(py))?;
+        out.set_item("v", v.into_pyarray(py))?;
+        Ok(out)
+    }
+
+    /// The tree's expected number of intersection tests per random line, E[X] =
+    /// Σ_n a_n · SA(n) / SA(root) (a_n: child boxes, or triangles of a leaf, tested at n).
+    fn expected_tests(&self) -> f64 {
+        expected_tests(&self.tree)
+    }
+
+    /// The SAH cost (MacDonald & Booth 1990) with weights C_t (traversal) and C_i
+    /// (intersection): Σ_internal C_t·SA(n)/SA(root) + Σ_leaf C_i·|n|·SA(n)/SA(root).
+    #[pyo3(signature = (traversal=1.0, intersection=1.0))]
+    fn sah_cost(&self, traversal: f64, intersection: f64) -> PyResult<f64> {
+        if !(traversal.is_finite() && intersection.is_finite()) {
+            return Err(PyValueError::new_err(
+                "sah_cost: the weights must be finite numbers",
+            ));
+        }
+        Ok(sah_cost(
+            &self.tree,
+            SahWeights {
+                traversal,
+                intersection,
+            },
+        ))
+    }
+
+    /// The tree's shape and costs, and how it was built, as a dict.
+    fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let shape = self.tree.shape();
+        let out = PyDict::new(py);
+        out.set_item("builder", &self.options.builder)?;
+        out.set_item("layout", &self.options.layout)?;
+        out.set_item("optimize", self.options.optimize)?;
+        out.set_item("leaf_size", self.options.leaf_size)?;
+        out.set_item("triangles", self.triangles.triangle_count())?;
+        out.set_item("degenerate_triangles", self.triangles.degenerate_count())?;
+        out.set_item("nodes", shape.nodes)?;
+        out.set_item("leaves", shape.leaves)?;
+        out.set_item("depth_max", shape.depth_max)?;
+        out.set_item("depth_mean", shape.depth_mean)?;
+        out.set_item("expected_tests", self.expected_tests())?;
+        out.set_item("sah_cost", sah_cost(&self.tree, SahWeights::default()))?;
+        out.set_item("build_seconds", self.build_seconds)?;
+        Ok(out)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "hbv.BVH({} triangles, builder={:?}, layout={:?}, optimize={}, leaf_size={})",
+            self.triangles.triangle_count(),
+            self.options.builder,
+            self.options.layout,
+            if self.options.optimize {
+                "True"
+            } else {
+                "False"
+            },
+            self.options
+                .leaf_size
+                .map_or("None".to_string(), |k| k.to_string())
+        )
+    }
+
+    /// Pickled as its mesh and options; unpickling rebuilds the tree (deterministically: the
+    /// same tree and the same answers).
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
+        let py = slf.py();
+        let me = slf.get();
+        let args = (
+            me.mesh.clone_ref(py),
+            me.options.builder.clone(),
+            me.options.layout.clone(),
+            me.options.optimize,
+            me.options.leaf_size,
+        )
+            .into_pyobject(py)?;
+        PyTuple::new(py, [slf.get_type().into_any(), args.into_any()])
+    }
+}

@@ -1,0 +1,22 @@
+//! The Python module `hbv._hbv`, re-exported by the package `hbv` (`python/hbv/__init__.py`).
+//!
+//! A thin layer: NumPy arrays are checked and read in place (`arrays.rs`), trees are built with
+//! the options of the command line (`build_options.rs`), and every query is the library's own,
+//! run on all cores with the GIL released (`bvh.rs`, `thread_pool.rs`).
+
+use pyo3::prelude::*;
+
+mod arrays;
+mod build_options;
+mod bvh;
+mod mesh;
+mod thread_pool;
+
+#[pymodule]
+fn _hbv(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<mesh::PyMesh>()?;
+    m.add_class::<bvh::PyBvh>()?;
+    m.add_function(wrap_pyfunction!(mesh::load, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

@@ -1,0 +1,128 @@
+//! `hbv.Mesh` and `hbv.load`.
+
+use std::sync::Arc;
+
+use hbv::glam::Vec3;
+use hbv::{MeshError, TriangleMesh};
+use numpy::{IntoPyArray, PyArray2, PyArrayMethods};
+use pyo3::exceptions::{PyOSError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::PyTuple;
+
+use crate::arrays::{float_array, index_array};
+
+/// A triangle mesh: vertices (V, 3) float32 and faces (F, 3) indices into them.
+///
+/// Mesh(vertices, faces): vertices float32 or float64 (converted), faces any integer dtype.
+/// Indices are checked to be in range and coordinates finite (ValueError otherwise).
+/// Degenerate (zero-area) triangles are kept, so that triangle ids are the face order, and are
+/// never hit.
+#[pyclass(name = "Mesh", module = "hbv", frozen)]
+pub struct PyMesh {
+    pub mesh: Arc<TriangleMesh>,
+}
+
+pub fn mesh_error(e: MeshError) -> PyErr {
+    match e {
+        MeshError::Io { .. } => PyOSError::new_err(e.to_string()),
+        _ => PyValueError::new_err(e.to_string()),
+    }
+}
+
+#[pymethods]
+impl PyMesh {
+    #[new]
+    fn new(vertices: &Bound<'_, PyAny>, faces: &Bound<'_, PyAny>) -> PyResult<Self> {
+        let (floats, _) = float_array("vertices", vertices, Some(3), None)?;
+        let positions: Vec<Vec3> = floats
+            .as_slice()
+            .chunks_exact(3)
+            .map(Vec3::from_slice)
+            .collect();
+        let indices = index_array("faces", faces)?;
+        let mesh = TriangleMesh::new(positions, indices).map_err(mesh_error)?;
+        Ok(Self {
+            mesh: Arc::new(mesh),
+        })
+    }
+
+    /// Vertex positions, (V, 3) float32 (a copy).
+    #[getter]
+    fn vertices<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let flat: Vec<f32> = self
+            .mesh
+            .positions()
+            .iter()
+            .flat_map(|p| p.to_array())
+            .collect();
+        flat.into_pyarray(py)
+            .reshape([self.mesh.positions().len(), 3])
+    }
+
+    /// Triangles, (F, 3) int64 indices into `vertices` (a copy).
+    #[getter]
+    fn faces<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i64>>> {
+        let flat: Vec<i64> = self
+            .mesh
+            .indices()
+            .iter()
+            .flat_map(|t| t.map(i64::from))
+            .collect();
+        flat.into_pyarray(py)
+            .reshape([self.mesh.triangle_count(), 3])
+    }
+
+    /// Number of triangles (degenerate ones included).
+    #[getter]
+    fn triangle_count(&self) -> usize {
+        self.mesh.triangle_count()
+    }
+
+    /// Number of zero-area triangles (kept for their ids, never hit).
+    #[getter]
+    fn degenerate_count(&self) -> usize {
+        self.mesh.degenerate_count()
+    }
+
+    /// The bounding box as ((min x, y, z), (max x, y, z)).
+    #[getter]
+    fn bounds(&self) -> ([f32; 3], [f32; 3]) {
+        let b = self.mesh.bounds();
+        (b.min.to_array(), b.max.to_array())
+    }
+
+    fn __len__(&self) -> usize {
+        self.mesh.triangle_count()
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "hbv.Mesh({} vertices, {} triangles)",
+            self.mesh.positions().len(),
+            self.mesh.triangle_count()
+        )
+    }
+
+    /// Pickled as its arrays.
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
+        let py = slf.py();
+        let me = slf.get();
+        let args = PyTuple::new(py, [me.vertices(py)?.into_any(), me.faces(py)?.into_any()])?;
+        PyTuple::new(py, [slf.get_type().into_any(), args.into_any()])
+    }
+}
+
+/// load(path) -> Mesh: reads .obj, .ply (ascii or binary), .gltf or .glb. Polygons are
+/// fan-triangulated in place, so triangle ids follow the file's face order.
+///
+/// Raises OSError when the file cannot be read, ValueError when it is not a valid mesh; the
+/// message names the file, the place in it and the reason.
+#[pyfunction]
+pub fn load(py: Python<'_>, path: std::path::PathBuf) -> PyResult<PyMesh> {
+    let mesh = py
+        .detach(|| TriangleMesh::load(&path))
+        .map_err(mesh_error)?;
+    Ok(PyMesh {
+        mesh: Arc::new(mesh),
+    })
+}

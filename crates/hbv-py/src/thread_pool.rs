@@ -1,0 +1,83 @@
+//! `threads=`: where a query runs. `None`: the global rayon pool (every core); `1`: the calling
+//! thread itself, with no hand-off to a pool thread (on a busy machine each hand-off waits for
+//! the scheduler, which can cost more than a small batch); `n`: a local pool of `n` threads.
+
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+
+/// Rows per rayon task at least: enough to hide scheduling, few enough to balance many cores.
+pub const GRAIN: usize = 256;
+
+/// Runs `work` on all cores (`threads` = None) or on a pool of exactly `threads` threads.
+pub fn run_on_threads<T: Send>(
+    threads: Option<usize>,
+    work: impl FnOnce() -> T + Send,
+) -> PyResult<T> {
+    match threads {
+        None => Ok(work()),
+        Some(0) => Err(PyValueError::new_err(
+            "threads: expected a positive number of threads, or None for all cores",
+        )),
+        Some(n) => {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .map_err(|e| PyRuntimeError::new_err(format!("cannot start {n} threads: {e}")))?;
+            Ok(pool.install(work))
+        }
+    }
+}
+
+/// Output columns of a query, one row per ray or point, that can be cut in two at a row.
+pub trait Rows: Sized + Send {
+    fn rows(&self) -> usize;
+    fn split_at(self, row: usize) -> (Self, Self);
+}
+
+impl<T: Send> Rows for &mut [T] {
+    fn rows(&self) -> usize {
+        self.len()
+    }
+    fn split_at(self, row: usize) -> (Self, Self) {
+        self.split_at_mut(row)
+    }
+}
+
+impl<A: Rows, B: Rows> Rows for (A, B) {
+    fn rows(&self) -> usize {
+        self.0.rows()
+    }
+    fn split_at(self, row: usize) -> (Self, Self) {
+        let (a0, a1) = self.0.split_at(row);
+        let (b0, b1) = self.1.split_at(row);
+        ((a0, b0), (a1, b1))
+    }
+}
+
+/// Fills `rows` with `fill(first_row, rows)`: on the calling thread for `threads = Some(1)`,
+/// otherwise cut in halves (down to [`GRAIN`] rows) that the pool's threads fill in parallel.
+pub fn fill_rows<R: Rows>(
+    threads: Option<usize>,
+    rows: R,
+    fill: impl Fn(usize, R) + Sync + Send,
+) -> PyResult<()> {
+    if threads == Some(1) {
+        fill(0, rows);
+        return Ok(());
+    }
+    run_on_threads(threads, || split_and_fill(0, rows, &fill))
+}
+
+fn split_and_fill<R: Rows>(first: usize, rows: R, fill: &(impl Fn(usize, R) + Sync)) {
+    let n = rows.rows();
+    if n <= GRAIN {
+        fill(first, rows);
+        return;
+    }
+    let mid = n / 2;
+    let (a, b) = rows.split_at(mid);
+    rayon::join(
+        || split_and_fill(first, a, fill),
+        || split_and_fill(first + mid, b, fill),
+    );
+}

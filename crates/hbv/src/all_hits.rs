@@ -1,0 +1,65 @@
+//! Every hit along a ray, not just the closest: the query behind hit counts, inside tests and
+//! "every surface this ray crosses" (trimesh's `intersects_location(multiple_hits=True)`).
+
+use rayon::prelude::*;
+
+use crate::geometry::Ray;
+use crate::query::Hit;
+
+/// A structure that reports every triangle a ray hits within `[tmin, tmax]`, found in one
+/// traversal that never shrinks the ray's interval (no re-casting from each hit).
+///
+/// Answers are sorted by `t`, equal `t` by primitive id, so any two structures (and
+/// [`BruteForce`](crate::BruteForce), the reference) give identical lists. Invalid rays (see
+/// [`Ray::is_valid`]) and degenerate triangles give no hits. A ray through an edge or vertex
+/// shared by several triangles hits each of them that the watertight test accepts.
+pub trait AllHits: Send + Sync {
+    /// Replaces the contents of `hits` with every hit along `ray`, sorted by `(t, prim)`.
+    fn all_hits(&self, ray: &Ray, hits: &mut Vec<Hit>);
+
+    /// The number of hits along `ray`: `all_hits(ray).len()`.
+    fn count_hits(&self, ray: &Ray) -> usize {
+        let mut hits = Vec::new();
+        self.all_hits(ray, &mut hits);
+        hits.len()
+    }
+
+    /// Every hit of every ray, in parallel on the current rayon pool, as one flat list of
+    /// `(ray index, hit)` in ray order and, within a ray, sorted by `(t, prim)`.
+    fn all_hits_batch(&self, rays: &[Ray]) -> Vec<(u32, Hit)> {
+        let parts: Vec<Vec<(u32, Hit)>> = rays
+            .par_chunks(ALL_HITS_GRAIN)
+            .enumerate()
+            .map(|(chunk, rays)| {
+                let mut out = Vec::new();
+                let mut hits = Vec::new();
+                for (k, ray) in rays.iter().enumerate() {
+                    self.all_hits(ray, &mut hits);
+                    let index = (chunk * ALL_HITS_GRAIN + k) as u32;
+                    out.extend(hits.iter().map(|&h| (index, h)));
+                }
+                out
+            })
+            .collect();
+        parts.concat()
+    }
+
+    /// Hit counts of many rays, in parallel on the current rayon pool.
+    fn count_hits_batch(&self, rays: &[Ray]) -> Vec<u32> {
+        rays.par_iter()
+            .with_min_len(ALL_HITS_GRAIN)
+            .map_init(Vec::new, |hits, ray| {
+                self.all_hits(ray, hits);
+                hits.len() as u32
+            })
+            .collect()
+    }
+}
+
+/// Rays per rayon task in the batch forms.
+const ALL_HITS_GRAIN: usize = 256;
+
+/// Sorts hits by `t`, then by primitive id: the order every [`AllHits`] answer is given in.
+pub fn sort_hits(hits: &mut [Hit]) {
+    hits.sort_unstable_by(|a, b| a.t.total_cmp(&b.t).then(a.prim.cmp(&b.prim)));
+}

@@ -1,0 +1,198 @@
+//! The nearest point of a mesh's surface to a query point: a branch-and-bound search of a BVH.
+
+use glam::{DVec3, Vec3};
+
+use super::point_triangle::closest_point_on_triangle;
+use crate::bvh::{BuildTree, NodeContent, NodeId};
+use crate::mesh::TriangleMesh;
+
+/// The nearest surface point to a query point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ClosestPoint {
+    /// The nearest point, `(1-u-v) p0 + u p1 + v p2` of triangle `prim`.
+    pub point: DVec3,
+    /// Euclidean distance from the query point to `point`.
+    pub distance: f64,
+    /// The triangle's index in the mesh's face order; among triangles at the same distance, the
+    /// smallest.
+    pub prim: u32,
+    pub u: f64,
+    pub v: f64,
+}
+
+/// A node of the search tree: its box in f64, and its children (`first..first + count` in
+/// `nodes`) or its triangles (`first..first + count` in `triangles`).
+#[derive(Clone, Copy, Debug)]
+struct SearchNode {
+    min: DVec3,
+    max: DVec3,
+    first: u32,
+    count: u32,
+    leaf: bool,
+}
+
+/// A BVH laid out for nearest-point queries: any [`BuildTree`]'s nodes, children side by side,
+/// boxes and triangles converted to f64 once (f32 to f64 is exact, so the answers are those of
+/// the f64 brute force over the same f32 vertices).
+///
+/// **Search** (branch and bound, as in Larsen et al. 1999 and Ericson §6.5): keep the best
+/// squared distance `d²` so far; at a node compute each child box's squared distance
+/// `Σ_axis max(min - p, 0, p - max)²` and visit children nearest first; a box farther than `d²`
+/// cannot hold a nearer triangle and is pruned. Each triangle is decided by
+/// [`closest_point_on_triangle`] (Ericson §5.1.5). Degenerate triangles are left out, as in every
+/// tree (they have no face to be nearest to, and their edges are other triangles' edges on
+/// meshes that matter).
+#[derive(Clone, Debug)]
+pub struct ClosestPointTree {
+    nodes: Vec<SearchNode>,
+    /// `(face id, vertices)` in leaf order.
+    triangles: Vec<(u32, [DVec3; 3])>,
+}
+
+/// Relative slack of the box pruning test: a box is pruned only when its distance exceeds the
+/// best by more than rounding (both are rounded f64 values of real distances that may be
+/// equal), so that no triangle that the brute force would pick is ever skipped.
+const PRUNE_SLACK: f64 = 1e-9;
+
+impl ClosestPointTree {
+    /// Lays out `tree` (built over `mesh` by any builder) for nearest-point search.
+    pub fn new(tree: &BuildTree, mesh: &TriangleMesh) -> Self {
+        let mut search = Self {
+            nodes: Vec::new(),
+            triangles: Vec::new(),
+        };
+        let Some(root) = tree.root() else {
+            return search;
+        };
+        // Breadth first: each node's children are pushed together, so they sit side by side.
+        let root_node = search.node_for(tree, mesh, root);
+        search.nodes.push(root_node);
+        let mut queue: std::collections::VecDeque<(NodeId, usize)> = [(root, 0)].into();
+        while let Some((id, slot)) = queue.pop_front() {
+            if let NodeContent::Internal(children) = &tree.node(id).content {
+                search.nodes[slot].first = search.nodes.len() as u32;
+                search.nodes[slot].count = children.len() as u32;
+                for &c in children {
+                    let node = search.node_for(tree, mesh, c);
+                    queue.push_back((c, search.nodes.len()));
+                    search.nodes.push(node);
+                }
+            }
+        }
+        search
+    }
+
+    /// The search node for `id`; a leaf's triangles are appended here, an internal node's
+    /// children are filled in by the caller.
+    fn node_for(&mut self, tree: &BuildTree, mesh: &TriangleMesh, id: NodeId) -> SearchNode {
+        let node = tree.node(id);
+        let mut search = SearchNode {
+            min: node.bounds.min.as_dvec3(),
+            max: node.bounds.max.as_dvec3(),
+            first: 0,
+            count: 0,
+            leaf: node.is_leaf(),
+        };
+        if let NodeContent::Leaf(prims) = &node.content {
+            search.first = self.triangles.len() as u32;
+            for &p in prims {
+                let t = mesh.triangle(p as usize);
+                if t.is_degenerate() {
+                    continue;
+                }
+                let v = [t.p0.as_dvec3(), t.p1.as_dvec3(), t.p2.as_dvec3()];
+                self.triangles.push((p, v));
+            }
+            search.count = self.triangles.len() as u32 - search.first;
+        }
+        search
+    }
+
+    /// The nearest surface point to `point`; `None` for an empty tree or a point with a NaN or
+    /// infinite coordinate.
+    pub fn closest_point(&self, point: Vec3) -> Option<ClosestPoint> {
+        self.closest_point_f64(point.as_dvec3())
+    }
+
+    /// [`ClosestPointTree::closest_point`] for an f64 query point.
+    pub fn closest_point_f64(&self, p: DVec3) -> Option<ClosestPoint> {
+        if self.nodes.is_empty() || !p.is_finite() {
+            return None;
+        }
+        let mut best: Option<ClosestPoint> = None;
+        let mut best_d2 = f64::INFINITY;
+        let mut stack: Vec<(u32, f64)> = Vec::with_capacity(64);
+        stack.push((0, box_distance_squared(&self.nodes[0], p)));
+        while let Some((index, d2)) = stack.pop() {
+            if d2 * (1.0 - PRUNE_SLACK) > best_d2 {
+                continue;
+            }
+            let node = self.nodes[index as usize];
+            let range = node.first as usize..(node.first + node.count) as usize;
+            if node.leaf {
+                for (prim, [a, b, c]) in &self.triangles[range] {
+                    let q = closest_point_on_triangle(p, *a, *b, *c);
+                    let d2 = (p - q.point).length_squared();
+                    let closer =
+                        d2 < best_d2 || (d2 == best_d2 && best.is_some_and(|b| *prim < b.prim));
+                    if closer {
+                        best_d2 = d2;
+                        best = Some(ClosestPoint {
+                            point: q.point,
+                            distance: d2.sqrt(),
+                            prim: *prim,
+                            u: q.u,
+                            v: q.v,
+                        });
+                    }
+                }
+                continue;
+            }
+            // Push the children farthest first, so that the nearest is searched next.
+            let first = stack.len();
+            for child in range {
+                let d2 = box_distance_squared(&self.nodes[child], p);
+                if d2 * (1.0 - PRUNE_SLACK) <= best_d2 {
+                    stack.push((child as u32, d2));
+                }
+            }
+            stack[first..].sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
+        }
+        best
+    }
+}
+
+/// Squared distance from `p` to the node's box (0 inside): `Σ max(min - p, 0, p - max)²`.
+#[inline]
+fn box_distance_squared(node: &SearchNode, p: DVec3) -> f64 {
+    let d = (node.min - p).max(p - node.max).max(DVec3::ZERO);
+    d.length_squared()
+}
+
+/// The nearest surface point by testing every non-degenerate triangle in f64: the reference of
+/// [`ClosestPointTree`] (same answer, same tie rule: smallest face id among equal distances).
+pub fn closest_point_brute_force(mesh: &TriangleMesh, p: DVec3) -> Option<ClosestPoint> {
+    if !p.is_finite() {
+        return None;
+    }
+    let mut best: Option<ClosestPoint> = None;
+    let mut best_d2 = f64::INFINITY;
+    for (prim, t) in mesh.triangles().enumerate() {
+        if t.is_degenerate() {
+            continue;
+        }
+        let q = closest_point_on_triangle(p, t.p0.as_dvec3(), t.p1.as_dvec3(), t.p2.as_dvec3());
+        let d2 = (p - q.point).length_squared();
+        if d2 < best_d2 {
+            best_d2 = d2;
+            best = Some(ClosestPoint {
+                point: q.point,
+                distance: d2.sqrt(),
+                prim: prim as u32,
+                u: q.u,
+                v: q.v,
+            });
+        }
+    }
+    best
+}

@@ -1,0 +1,194 @@
+//! Property tests of the point queries: the BVH's nearest surface point equals the f64 brute
+//! force's, and the inside test agrees with parity counts and with geometry.
+
+use hbv::bvh::build::{
+    BinnedSahBuilder, BinnedSahConfig, Builder, InsertionBuilder, InsertionConfig,
+};
+use hbv::bvh::layout::Wide8Layout;
+use hbv::glam::{DVec3, Vec3};
+use hbv::mesh::procedural::{icosphere, torus};
+use hbv::proximity::{closest_point_brute_force, contains, ClosestPointTree};
+use hbv::{BruteForce, TriangleMesh};
+use proptest::prelude::*;
+
+mod common;
+use common::{closed_mesh, order, point, soup};
+
+/// Query points for `mesh`: inside and around its box, exactly on vertices, on edges and on
+/// faces, far away, and non-finite.
+fn points_for(mesh: &TriangleMesh) -> impl Strategy<Value = Vec<Vec3>> {
+    let b = mesh.bounds();
+    let (lo, hi) = (b.min, b.max);
+    let n = mesh.triangle_count();
+    let positions = mesh.positions().to_vec();
+    let m = mesh.clone();
+    let around = move || {
+        (-0.5f32..1.5, -0.5f32..1.5, -0.5f32..1.5)
+            .prop_map(move |(x, y, z)| lo + (hi - lo) * Vec3::new(x, y, z))
+    };
+    let one = prop_oneof![
+        4 => around(),
+        1 => (0..positions.len()).prop_map(move |i| positions[i]),
+        1 => (0..n, 0.0f32..1.0).prop_map(move |(i, k)| {
+            let t = m.triangle(i);
+            t.p0 + (t.p1 - t.p0) * k
+        }),
+        1 => point(1e9),
+        1 => Just(Vec3::new(f32::NAN, 0.0, 0.0)),
+        1 => Just(Vec3::new(0.0, f32::INFINITY, 0.0)),
+    ];
+    prop::collection::vec(one, 1..48)
+}
+
+fn mesh_and_points(
+    mesh: impl Strategy<Value = TriangleMesh>,
+) -> impl Strategy<Value = (TriangleMesh, Vec<Vec3>)> {
+    mesh.prop_flat_map(|m| {
+        let points = points_for(&m);
+        (Just(m), points)
+    })
+}
+
+fn assert_closest_points_agree(
+    mesh: &TriangleMesh,
+    order: hbv::bvh::build::InsertionOrder,
+    leaf: usize,
+    points: &[Vec3],
+) -> Result<(), TestCaseError> {
+    let insertion = InsertionBuilder::new(InsertionConfig {
+        order,
+        max_leaf_size: leaf,
+    })
+    .build(mesh);
+    let mut config = BinnedSahConfig::default();
+    config.leaf.max_leaf_size = leaf;
+    let sah = BinnedSahBuilder::new(config).build(mesh);
+    for (name, tree) in [("insertion", insertion), ("binned-sah", sah)] {
+        let search = ClosestPointTree::new(&tree, mesh);
+        for (i, p) in points.iter().enumerate() {
+            let want = closest_point_brute_force(mesh, p.as_dvec3());
+            let got = search.closest_point(*p);
+            prop_assert_eq!(want, got, "{}: point {} {:?}", name, i, p);
+        }
+    }
+    Ok(())
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(200))]
+
+    #[test]
+    fn soup_closest_point_equals_brute_force((mesh, points) in mesh_and_points(soup()), order in order(), leaf in 1usize..9) {
+        assert_closest_points_agree(&mesh, order, leaf, &points)?;
+    }
+
+    #[test]
+    fn closed_mesh_closest_point_equals_brute_force((mesh, points) in mesh_and_points(closed_mesh()), order in order(), leaf in 1usize..9) {
+        assert_closest_points_agree(&mesh, order, leaf, &points)?;
+    }
+
+    /// The BVH's vote equals brute force's vote (same rays, same parities), on closed meshes.
+    #[test]
+    fn closed_mesh_contains_equals_brute_force_parity((mesh, points) in mesh_and_points(closed_mesh())) {
+        let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+        let bvh = Wide8Layout::new(&tree, &mesh);
+        let reference = BruteForce::new(&mesh);
+        for p in &points {
+            prop_assert_eq!(contains(&reference, *p), contains(&bvh, *p), "{:?}", p);
+        }
+    }
+}
+
+/// Points well inside and well outside a sphere (away from the polygonal surface) are
+/// classified by geometry.
+#[test]
+fn contains_matches_a_sphere() {
+    let mesh = icosphere(Vec3::new(0.5, -0.25, 2.0), 2.0, 3);
+    let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+    let bvh = Wide8Layout::new(&tree, &mesh);
+    let centre = Vec3::new(0.5, -0.25, 2.0);
+    let mut checked = 0;
+    for i in 0..20 {
+        for j in 0..20 {
+            for k in 0..20 {
+                let p = centre + (Vec3::new(i as f32, j as f32, k as f32) / 19.0 - 0.5) * 5.0;
+                let r = (p - centre).length();
+                if r < 1.8 {
+                    assert!(contains(&bvh, p), "{p:?} (r = {r}) should be inside");
+                    checked += 1;
+                } else if r > 2.01 {
+                    assert!(!contains(&bvh, p), "{p:?} (r = {r}) should be outside");
+                    checked += 1;
+                }
+            }
+        }
+    }
+    assert!(checked > 7000);
+}
+
+/// A cube and grid points: rays from the centre and from symmetric points must not be fooled
+/// by the diagonals and edges that axis-aligned meshes line up with.
+#[test]
+fn contains_is_not_fooled_by_a_cube_s_edges() {
+    let v = |x: f32, y: f32, z: f32| Vec3::new(x, y, z);
+    let positions = vec![
+        v(-1.0, -1.0, -1.0),
+        v(1.0, -1.0, -1.0),
+        v(1.0, 1.0, -1.0),
+        v(-1.0, 1.0, -1.0),
+        v(-1.0, -1.0, 1.0),
+        v(1.0, -1.0, 1.0),
+        v(1.0, 1.0, 1.0),
+        v(-1.0, 1.0, 1.0),
+    ];
+    let faces = vec![
+        [0, 2, 1],
+        [0, 3, 2],
+        [4, 5, 6],
+        [4, 6, 7],
+        [0, 1, 5],
+        [0, 5, 4],
+        [2, 3, 7],
+        [2, 7, 6],
+        [1, 2, 6],
+        [1, 6, 5],
+        [0, 4, 7],
+        [0, 7, 3],
+    ];
+    let mesh = TriangleMesh::new(positions, faces).unwrap();
+    let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+    let bvh = Wide8Layout::new(&tree, &mesh);
+    for i in -4..=4 {
+        for j in -4..=4 {
+            for k in -4..=4 {
+                let p = Vec3::new(i as f32, j as f32, k as f32) * 0.25;
+                let on_surface = p.abs().max_element() == 1.0;
+                if !on_surface {
+                    let inside = p.abs().max_element() < 1.0;
+                    assert_eq!(contains(&bvh, p), inside, "{p:?}");
+                }
+            }
+        }
+    }
+    let far = Vec3::new(3.0, 0.0, 0.0);
+    assert!(!contains(&bvh, far));
+}
+
+#[test]
+fn closest_point_on_a_torus_is_on_its_tube() {
+    let mesh = torus(Vec3::ZERO, 2.0, 0.5, 48, 24);
+    let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+    let search = ClosestPointTree::new(&tree, &mesh);
+    let hit = search.closest_point(Vec3::new(5.0, 0.0, 0.0)).unwrap();
+    assert!((hit.distance - 2.5).abs() < 0.01, "{hit:?}");
+    let t = mesh.triangle(hit.prim as usize);
+    let back =
+        (1.0 - hit.u - hit.v) * t.p0.as_dvec3() + hit.u * t.p1.as_dvec3() + hit.v * t.p2.as_dvec3();
+    assert!((back - hit.point).length() < 1e-12);
+    assert!(search.closest_point(Vec3::NAN).is_none());
+    let empty = TriangleMesh::new(vec![], vec![]).unwrap();
+    let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&empty);
+    assert!(ClosestPointTree::new(&tree, &empty)
+        .closest_point_f64(DVec3::ZERO)
+        .is_none());
+}

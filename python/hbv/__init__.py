@@ -1,0 +1,28 @@
+"""hbv: fast, exact ray queries on triangle meshes.
+
+Build a bounding volume hierarchy over a mesh once, then ask it, for whole NumPy arrays of rays
+or points at a time (all cores, GIL released):
+
+- ``intersect``: the closest hit of each ray (``hit``, ``t``, ``prim``, ``u``, ``v``);
+- ``occluded``: whether anything lies along each ray;
+- ``intersect_all`` / ``count``: every hit along each ray, in one traversal;
+- ``contains``: whether points lie inside a closed mesh;
+- ``closest_point``: the nearest surface point, its distance, triangle and barycentrics.
+
+Answers are exact (watertight ray/triangle test, checked against brute force) and deterministic
+(equal ``t``: the smaller triangle id wins).
+
+>>> import numpy as np, hbv
+>>> mesh = hbv.Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32), np.array([[0, 1, 2]]))
+>>> bvh = hbv.BVH(mesh)
+>>> hits = bvh.intersect(np.array([[0.2, 0.2, -1.0]]), np.array([[0.0, 0.0, 1.0]]))
+>>> bool(hits["hit"][0]), float(hits["t"][0]), int(hits["prim"][0])
+(True, 1.0, 0)
+
+``hbv.trimesh.RayMeshIntersector`` answers trimesh's ray queries with the same meaning.
+"""
+
+from ._hbv import BVH, Mesh, __version__, load
+from . import trimesh
+
+__all__ = ["BVH", "Mesh", "load", "trimesh", "__version__"]

@@ -1,0 +1,101 @@
+"""Type stubs of the compiled module (crates/hbv-py)."""
+
+from os import PathLike
+from typing import Any, Optional, Tuple, TypedDict, Union
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+_Floats = npt.ArrayLike
+_Bound = Union[None, float, npt.ArrayLike]
+
+class Hits(TypedDict):
+    hit: npt.NDArray[np.bool_]
+    t: npt.NDArray[np.float32]
+    prim: npt.NDArray[np.int64]
+    u: npt.NDArray[np.float32]
+    v: npt.NDArray[np.float32]
+
+class ClosestPoints(TypedDict):
+    point: npt.NDArray[np.float64]
+    distance: npt.NDArray[np.float64]
+    prim: npt.NDArray[np.int64]
+    u: npt.NDArray[np.float64]
+    v: npt.NDArray[np.float64]
+
+class Mesh:
+    """A triangle mesh: vertices (V, 3) float32/float64, faces (F, 3) integer."""
+
+    def __init__(self, vertices: _Floats, faces: npt.ArrayLike) -> None: ...
+    @property
+    def vertices(self) -> npt.NDArray[np.float32]: ...
+    @property
+    def faces(self) -> npt.NDArray[np.int64]: ...
+    @property
+    def triangle_count(self) -> int: ...
+    @property
+    def degenerate_count(self) -> int: ...
+    @property
+    def bounds(self) -> Tuple[Tuple[float, float, float], Tuple[float, float, float]]: ...
+    def __len__(self) -> int: ...
+
+def load(path: Union[str, PathLike[str]]) -> Mesh:
+    """Reads .obj, .ply, .gltf or .glb; OSError / ValueError naming file, place and reason."""
+
+class BVH:
+    """A bounding volume hierarchy over a mesh, answering ray and point queries."""
+
+    def __init__(
+        self,
+        mesh: Mesh,
+        builder: str = "binned-sah",
+        layout: Optional[str] = None,
+        optimize: bool = False,
+        leaf_size: Optional[int] = None,
+    ) -> None: ...
+    @property
+    def mesh(self) -> Mesh: ...
+    @property
+    def builder(self) -> str: ...
+    @property
+    def layout(self) -> str: ...
+    def intersect(
+        self,
+        origins: _Floats,
+        directions: _Floats,
+        tmin: _Bound = None,
+        tmax: _Bound = None,
+        threads: Optional[int] = None,
+    ) -> Hits: ...
+    def occluded(
+        self,
+        origins: _Floats,
+        directions: _Floats,
+        tmin: _Bound = None,
+        tmax: _Bound = None,
+        threads: Optional[int] = None,
+    ) -> npt.NDArray[np.bool_]: ...
+    def intersect_all(
+        self,
+        origins: _Floats,
+        directions: _Floats,
+        tmin: _Bound = None,
+        tmax: _Bound = None,
+        threads: Optional[int] = None,
+    ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.float32], npt.NDArray[np.int64]]: ...
+    def count(
+        self,
+        origins: _Floats,
+        directions: _Floats,
+        tmin: _Bound = None,
+        tmax: _Bound = None,
+        threads: Optional[int] = None,
+    ) -> npt.NDArray[np.int64]: ...
+    def contains(self, points: _Floats, threads: Optional[int] = None) -> npt.NDArray[np.bool_]: ...
+    def closest_point(self, points: _Floats, threads: Optional[int] = None) -> ClosestPoints: ...
+    def expected_tests(self) -> float: ...
+    def sah_cost(self, traversal: float = 1.0, intersection: float = 1.0) -> float: ...
+    def stats(self) -> dict[str, Any]: ...
+    def __reduce__(self) -> Any: ...

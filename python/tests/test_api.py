@@ -1,0 +1,180 @@
+"""The Python API: construction, argument checking, dtypes, intervals, threads, pickling."""
+
+import doctest
+import pickle
+
+import numpy as np
+import pytest
+
+import hbv
+from conftest import icosphere, random_rays
+
+
+def test_mesh_round_trips_its_arrays(sphere):
+    mesh, v, f = sphere
+    assert mesh.triangle_count == len(f) == len(mesh)
+    np.testing.assert_array_equal(mesh.faces, f)
+    np.testing.assert_array_equal(mesh.vertices, v.astype(np.float32))
+    assert mesh.vertices.dtype == np.float32 and mesh.faces.dtype == np.int64
+    lo, hi = mesh.bounds
+    assert np.allclose(lo, -1, atol=1e-6) and np.allclose(hi, 1, atol=1e-6)
+
+
+def test_load_reads_obj_and_names_the_file_on_errors(tmp_path):
+    path = tmp_path / "quad.obj"
+    path.write_text("v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nf 1 2 3 4\n")
+    mesh = hbv.load(path)
+    assert mesh.triangle_count == 2
+    assert hbv.load(str(path)).triangle_count == 2
+    bad = tmp_path / "bad.obj"
+    bad.write_text("v 0 0 0\nf 1 2 3\n")
+    with pytest.raises(ValueError, match="bad.obj"):
+        hbv.load(bad)
+    with pytest.raises(OSError, match="missing.ply"):
+        hbv.load(tmp_path / "missing.ply")
+
+
+def test_bad_arguments_raise_clear_errors(sphere):
+    mesh, _, _ = sphere
+    bvh = hbv.BVH(mesh)
+    o, d = random_rays(4)
+    with pytest.raises(ValueError, match=r"origins: expected shape \(N, 3\), got \(4, 2\)"):
+        bvh.intersect(o[:, :2], d)
+    with pytest.raises(ValueError, match="directions: expected 4 rows"):
+        bvh.intersect(o, d[:3])
+    with pytest.raises(TypeError, match="directions: .*complex128"):
+        bvh.intersect(o, d.astype(complex))
+    with pytest.raises(ValueError, match="tmax: expected 4 rows"):
+        bvh.intersect(o, d, tmax=np.ones(3))
+    with pytest.raises(ValueError, match="threads"):
+        bvh.occluded(o, d, threads=0)
+    with pytest.raises(ValueError, match="points: expected shape"):
+        bvh.closest_point(np.zeros((2, 2)))
+    with pytest.raises(TypeError, match="mesh: expected an hbv.Mesh"):
+        hbv.BVH(np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="builder: unknown builder"):
+        hbv.BVH(mesh, builder="octree")
+    with pytest.raises(ValueError, match="layout: unknown layout"):
+        hbv.BVH(mesh, layout="wide16")
+    with pytest.raises(ValueError, match="leaf_size"):
+        hbv.BVH(mesh, leaf_size=0)
+    with pytest.raises(ValueError, match="face 0: vertex index 7 out of range"):
+        hbv.Mesh(np.zeros((3, 3)), [[0, 1, 7]])
+    with pytest.raises(ValueError, match="faces: row 0"):
+        hbv.Mesh(np.zeros((3, 3)), [[0, 1, -1]])
+    with pytest.raises(TypeError, match="faces: expected an integer dtype"):
+        hbv.Mesh(np.zeros((3, 3)), np.zeros((1, 3)))
+    with pytest.raises(ValueError, match="vertex 1: coordinate is not finite"):
+        hbv.Mesh([[0, 0, 0], [np.nan, 0, 0], [0, 1, 0]], [[0, 1, 2]])
+
+
+def test_dtypes_and_strides_give_the_same_answers(sphere):
+    mesh, _, _ = sphere
+    bvh = hbv.BVH(mesh)
+    o, d = random_rays(500)
+    o32, d32 = o.astype(np.float32), d.astype(np.float32)
+    want = bvh.intersect(o32, d32)
+    assert want["t"].dtype == np.float32 and want["prim"].dtype == np.int64
+    assert want["hit"].dtype == bool and want["u"].dtype == np.float32
+    for oo, dd in [(o, d), (np.asfortranarray(o32), d32), (o32, np.repeat(d32, 2, 0)[::2]),
+                   (o32.tolist(), d32.tolist())]:
+        got = bvh.intersect(oo, dd)
+        for k in want:
+            np.testing.assert_array_equal(got[k], want[k])
+
+
+def test_misses_and_invalid_rays_follow_rays_md(sphere):
+    mesh, _, _ = sphere
+    bvh = hbv.BVH(mesh)
+    o = np.array([[0, 0, -5], [0, 0, -5], [np.nan, 0, 0], [0, 0, 0], [5, 5, 5]], np.float32)
+    d = np.array([[0, 0, 1], [0, 0, -1], [0, 0, 1], [0, 0, 0], [1, 0, 0]], np.float32)
+    h = bvh.intersect(o, d)
+    np.testing.assert_array_equal(h["hit"], [True, False, False, False, False])
+    assert np.all(np.isinf(h["t"][1:])) and np.all(h["prim"][1:] == -1)
+    assert np.all(h["u"][1:] == 0) and np.all(h["v"][1:] == 0)
+    np.testing.assert_array_equal(bvh.occluded(o, d), h["hit"])
+
+
+def test_intervals_scalar_and_per_ray(sphere):
+    mesh, _, _ = sphere
+    bvh = hbv.BVH(mesh)
+    o = np.array([[0.01, 0.02, -5.0]] * 3)
+    d = np.array([[0, 0, 1.0]] * 3)
+    np.testing.assert_array_equal(bvh.occluded(o, d, tmax=3.0), [False] * 3)
+    np.testing.assert_array_equal(bvh.occluded(o, d, tmax=np.array([3.0, 4.5, np.inf])), [False, True, True])
+    h = bvh.intersect(o, d, tmin=np.array([0, 4.5, 7.0]))
+    np.testing.assert_array_equal(h["hit"], [True, True, False])
+    assert abs(h["t"][0] - 4.0) < 0.01 and abs(h["t"][1] - 6.0) < 0.01
+    assert list(bvh.count(o, d, tmin=4.5)) == [1, 1, 1]
+
+
+def test_threads_do_not_change_answers(sphere):
+    mesh, _, _ = sphere
+    bvh = hbv.BVH(mesh)
+    o, d = random_rays(3000)
+    want = bvh.intersect(o, d)
+    for threads in (1, 2, 3):
+        got = bvh.intersect(o, d, threads=threads)
+        for k in want:
+            np.testing.assert_array_equal(got[k], want[k])
+    np.testing.assert_array_equal(bvh.count(o, d, threads=1), bvh.count(o, d))
+
+
+def test_every_builder_and_layout_gives_the_same_answers(triangle_soup):
+    mesh, _, _ = triangle_soup
+    o, d = random_rays(1000)
+    want = hbv.BVH(mesh).intersect(o, d)
+    for builder in ["binned-sah", "sweep-sah", "insertion", "median", "lbvh"]:
+        for layout in ["wide8", "wide4", "ordered", "recursive", "skip"]:
+            bvh = hbv.BVH(mesh, builder=builder, layout=layout, leaf_size=4)
+            got = bvh.intersect(o, d)
+            for k in want:
+                np.testing.assert_array_equal(got[k], want[k], err_msg=f"{builder} {layout} {k}")
+    bvh = hbv.BVH(mesh, builder="insertion", optimize=True)
+    np.testing.assert_array_equal(bvh.intersect(o, d)["prim"], want["prim"])
+
+
+def test_costs_and_stats(sphere):
+    mesh, _, f = sphere
+    bvh = hbv.BVH(mesh, builder="insertion")
+    s = bvh.stats()
+    assert s["triangles"] == len(f) and s["builder"] == "insertion" and s["layout"] == "wide8"
+    assert s["expected_tests"] == bvh.expected_tests() > 1.0
+    assert bvh.sah_cost() > 0 and bvh.sah_cost(2.0, 1.0) > bvh.sah_cost(1.0, 1.0)
+    assert s["leaves"] == len(f)  # insertion: one triangle per leaf
+
+
+def test_pickling_rebuilds_the_same_bvh(sphere):
+    mesh, _, _ = sphere
+    bvh = hbv.BVH(mesh, builder="median", layout="ordered", leaf_size=3)
+    copy = pickle.loads(pickle.dumps(bvh))
+    assert repr(copy) == repr(bvh)
+    assert copy.expected_tests() == bvh.expected_tests()
+    o, d = random_rays(200)
+    for k, v in bvh.intersect(o, d).items():
+        np.testing.assert_array_equal(copy.intersect(o, d)[k], v)
+    m2 = pickle.loads(pickle.dumps(mesh))
+    np.testing.assert_array_equal(m2.faces, mesh.faces)
+
+
+def test_empty_mesh_answers_misses():
+    mesh = hbv.Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64))
+    bvh = hbv.BVH(mesh)
+    o, d = random_rays(10)
+    assert not bvh.intersect(o, d)["hit"].any()
+    assert (bvh.count(o, d) == 0).all() and not bvh.contains(o).any()
+    cp = bvh.closest_point(o)
+    assert (cp["prim"] == -1).all() and np.isinf(cp["distance"]).all()
+
+
+def test_zero_rays():
+    v, f = icosphere(1)
+    bvh = hbv.BVH(hbv.Mesh(v, f))
+    empty = np.zeros((0, 3), np.float32)
+    assert len(bvh.intersect(empty, empty)["t"]) == 0
+    assert len(bvh.intersect_all(empty, empty)[0]) == 0
+    assert bvh.closest_point(empty)["point"].shape == (0, 3)
+
+
+def test_docstring_examples_run():
+    assert doctest.testmod(hbv, raise_on_error=True).attempted > 0
