@@ -158,11 +158,19 @@ pub(crate) struct Archive {
 impl Archive {
     /// Opens `path` and lists its members (names without their `.npy` suffix).
     pub(crate) fn open(path: &Path) -> Result<Self, RayFileError> {
-        let file = File::open(path).map_err(|e| RayFileError {
+        let open_error = |e| RayFileError {
             path: path.to_owned(),
             member: None,
             reason: Reason::Open(e),
-        })?;
+        };
+        let file = File::open(path).map_err(open_error)?;
+        // A directory opens on Unix; reading it would fail with a bare "i/o error" in zip.
+        if file.metadata().is_ok_and(|m| m.is_dir()) {
+            return Err(open_error(io::Error::new(
+                io::ErrorKind::IsADirectory,
+                "it is a directory",
+            )));
+        }
         Self::from_reader(path, BufReader::new(file))
     }
 

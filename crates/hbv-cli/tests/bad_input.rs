@@ -323,6 +323,9 @@ fn bad_ray_files_are_one_line_naming_member_and_reason() {
 #[test]
 fn missing_ray_file_is_one_line() {
     let s = Scene::new();
+    std::fs::create_dir(s.path("folder.npz")).unwrap();
+    let line = s.trace_error(&s.path("tetra.obj"), &s.path("folder.npz"));
+    assert!(line.ends_with("folder.npz: it is a directory"), "{line}");
     let line = s.trace_error(&s.path("tetra.obj"), &s.path("missing.npz"));
     assert!(
         line.contains("cannot read rays: cannot open ")

@@ -78,6 +78,11 @@ fn ply_binary_triangle() -> Vec<u8> {
 
 /// A GLB holding one triangle (positions and u16 indices in the binary chunk).
 fn glb_triangle() -> Vec<u8> {
+    glb_triangle_declaring(3)
+}
+
+/// [`glb_triangle`] with its POSITION accessor declaring `count` positions.
+fn glb_triangle_declaring(count: u64) -> Vec<u8> {
     let mut blob = Vec::new();
     for c in [0f32, 0., 0., 1., 0., 0., 0., 1., 0.] {
         blob.extend(c.to_le_bytes());
@@ -88,7 +93,7 @@ fn glb_triangle() -> Vec<u8> {
     let json = format!(
         r#"{{"asset":{{"version":"2.0"}},"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}},"indices":1}}]}}],
 "buffers":[{{"byteLength":{}}}],"bufferViews":[{{"buffer":0,"byteLength":36}},{{"buffer":0,"byteOffset":36,"byteLength":6}}],
-"accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}},
+"accessors":[{{"bufferView":0,"componentType":5126,"count":{count},"type":"VEC3","min":[0,0,0],"max":[1,1,0]}},
 {{"bufferView":1,"componentType":5123,"count":3,"type":"SCALAR"}}]}}"#,
         blob.len()
     );
@@ -358,16 +363,21 @@ fn ply_declaring_2_pow_31_faces_fails_fast_without_allocating_them() {
 
 #[test]
 fn gltf_accessor_larger_than_its_buffer_is_an_error() {
-    let glb = glb_triangle();
-    let text = String::from_utf8_lossy(&glb).into_owned();
-    let lying = text.replacen(
-        "\"count\":3,\"type\":\"VEC3\"",
-        "\"count\":2147483647,\"type\":\"VEC3\"",
-        1,
+    let m = parse_error(MeshFormat::Gltf, "short.glb", glb_triangle_declaring(4));
+    assert_eq!(
+        m,
+        "short.glb: mesh 0 primitive 0: POSITION data is missing or lies outside its buffer"
     );
-    assert_ne!(text, lying);
-    let m = parse_error(MeshFormat::Gltf, "lying.glb", lying.as_bytes());
-    assert!(m.starts_with("lying.glb: "), "{m}");
+    let m = parse_error(
+        MeshFormat::Gltf,
+        "lying.glb",
+        glb_triangle_declaring(2147483647),
+    );
+    assert_eq!(
+        m,
+        "lying.glb: accessor 0: POSITION declares 2147483647 elements at offset 0, \
+         more than the 44 bytes of buffers hold"
+    );
 }
 
 // ------------------------------------------------------------------ truncated files
@@ -425,7 +435,7 @@ fn truncated_files_of_each_format_are_errors() {
 #[test]
 fn non_utf8_contents_are_errors_naming_the_line() {
     let m = load_error("latin1.obj", b"v 0 0 0\nv 1 0 0\nv 0 1 \xe9\nf 1 2 3\n");
-    assert!(m.contains("line 3"), "{m}");
+    assert!(m.contains("line 3: line is not valid UTF-8"), "{m}");
     let mut ply = ply_ascii("0 0 0\n1 0 0\n0 1 0\n", "3 0 1 2\n", 3, 1).into_bytes();
     let at = ply.len() - 3;
     ply[at] = 0xff;
@@ -610,5 +620,32 @@ fn gltf_position_naming_a_missing_accessor_is_an_error() {
     assert_eq!(
         m,
         "short.glb: GLB header: declares a total length of 4 bytes, less than the header's 12"
+    );
+}
+
+#[test]
+fn gltf_sparse_and_view_less_accessors_are_refused_before_reading() {
+    // Without a buffer view the `gltf` crate's reader would make 2^31 - 1 zero positions.
+    let zeros = r#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],
+        "accessors":[{"componentType":5126,"count":2147483647,"type":"VEC3","min":[0,0,0],"max":[0,0,0]}]}"#;
+    let m = parse_error(MeshFormat::Gltf, "zeros.gltf", zeros);
+    assert!(
+        m.starts_with("zeros.gltf: file: not valid glTF: invalid glTF: accessors[0].bufferView"),
+        "{m}"
+    );
+    let sparse = zeros
+        .replace(
+            r#""max":[0,0,0]}"#,
+            r#""max":[0,0,0],"sparse":{"count":1,"indices":{"bufferView":0,"componentType":5123},"values":{"bufferView":0}}}"#,
+        )
+        .replace(
+            r#""accessors""#,
+            r#""buffers":[{"byteLength":16,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAAAAAA=="}],
+            "bufferViews":[{"buffer":0,"byteLength":16}],"accessors""#,
+        );
+    let m = parse_error(MeshFormat::Gltf, "sparse.gltf", sparse);
+    assert_eq!(
+        m,
+        "sparse.gltf: accessor 0: POSITION is a sparse accessor; sparse accessors are not supported"
     );
 }

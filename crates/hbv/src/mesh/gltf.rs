@@ -44,6 +44,7 @@ pub(super) fn parse(
     let mut out = Flattened {
         path,
         buffers: &buffers,
+        buffer_bytes: buffers.iter().map(|b| b.len()).sum(),
         positions: Vec::new(),
         triangles: Vec::new(),
     };
@@ -157,6 +158,8 @@ fn load_buffers(
 struct Flattened<'a> {
     path: &'a Path,
     buffers: &'a [buffer::Data],
+    /// Bytes in all buffers: no honest accessor declares more elements, or a larger offset.
+    buffer_bytes: usize,
     positions: Vec<Vec3>,
     triangles: Vec<[u32; 3]>,
 }
@@ -212,6 +215,42 @@ impl Flattened<'_> {
         Ok(())
     }
 
+    /// Refuses accessors the `gltf` crate's reader cannot be trusted with: sparse ones (its
+    /// sparse reader computes `count - 1` unchecked, unwraps the values, and fills an accessor
+    /// without a buffer view with `count` zeros, however large `count` is), and any declaring
+    /// more elements, or a larger byte offset, than all buffers have bytes (its reader computes
+    /// `offset + stride * (count - 1)` unchecked).
+    fn check_accessor(&self, accessor: &gltf::Accessor<'_>, what: &str) -> Result<(), MeshError> {
+        let place = format!("accessor {}", accessor.index());
+        if accessor.sparse().is_some() {
+            return Err(MeshError::invalid(
+                self.path,
+                place,
+                format!("{what} is a sparse accessor; sparse accessors are not supported"),
+            ));
+        }
+        if accessor.view().is_none() && accessor.count() > 0 {
+            return Err(MeshError::invalid(
+                self.path,
+                place,
+                format!("{what} has no buffer view (its data would be all zeros)"),
+            ));
+        }
+        if accessor.count() > self.buffer_bytes || accessor.offset() > self.buffer_bytes {
+            return Err(MeshError::invalid(
+                self.path,
+                place,
+                format!(
+                    "{what} declares {} elements at offset {}, more than the {} bytes of buffers hold",
+                    accessor.count(),
+                    accessor.offset(),
+                    self.buffer_bytes
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// Appends the triangle primitives of `mesh`, in order, transformed by `world`.
     fn append_mesh(&mut self, mesh: &Mesh<'_>, world: &Mat4) -> Result<(), MeshError> {
         for primitive in mesh.primitives() {
@@ -239,6 +278,7 @@ impl Flattened<'_> {
                     accessor.dimensions()
                 )));
             }
+            self.check_accessor(&accessor, "POSITION")?;
             let count = accessor.count();
             let base = self.positions.len();
             if count > 0 {
@@ -267,6 +307,7 @@ impl Flattened<'_> {
                             indices.data_type()
                         )));
                     }
+                    self.check_accessor(&indices, "indices")?;
                     if indices.count() == 0 {
                         Vec::new()
                     } else {
