@@ -102,6 +102,8 @@ fn grid_per_ray_kind_and_caches_off_render_the_default_image() {
             let lookups = kinds["shadow"]["cache"]["lookups"].as_u64().unwrap();
             assert_eq!(lookups, kinds["shadow"]["rays"].as_u64().unwrap());
             assert!(kinds["primary"]["cache"]["hit_rate"].as_f64().unwrap() > 0.0);
+            let hits = kinds["shadow"]["cache"]["hits"].as_u64().unwrap();
+            assert!(hits <= kinds["shadow"]["blocked"].as_u64().unwrap());
         }
         if extra.contains(&"grid") {
             assert_eq!(report["primary"], "grid");

@@ -46,6 +46,8 @@ pub struct RayStats {
     /// Object cache hits and misses (all lights' shadow caches together); zero for kinds that
     /// bypass the caches.
     pub cache: [CacheStats; 4],
+    /// Shadow rays found blocked (the most a shadow cache could hit).
+    pub shadow_blocked: u64,
 }
 
 impl RayStats {
@@ -72,5 +74,6 @@ impl AddAssign for RayStats {
             self.query_nanos[k] += o.query_nanos[k];
             self.cache[k] += o.cache[k];
         }
+        self.shadow_blocked += o.shadow_blocked;
     }
 }

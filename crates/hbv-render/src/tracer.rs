@@ -155,6 +155,7 @@ impl SceneTracer {
             (None, false) => self.shadow.occluded(ray),
         };
         tally.record(kind, work, start);
+        tally.stats.shadow_blocked += blocked as u64;
         blocked
     }
 }

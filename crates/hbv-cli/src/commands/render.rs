@@ -280,6 +280,7 @@ impl Report<'_> {
                     "query_seconds": (timed > 0).then(|| st.query_nanos[k] as f64 * 1e-9),
                     "time_share": (timed > 0).then(|| st.query_nanos[k] as f64 / timed as f64),
                     "cache": cache_json(st.cache[k]),
+                    "blocked": (k == 3).then_some(st.shadow_blocked),
                     "mailbox_skips": counted.then_some(st.work[k].mailbox_skips),
                 }),
             );
@@ -387,8 +388,17 @@ impl Report<'_> {
             );
             for k in cached {
                 let c = st.cache[k];
+                let of_blocked = if k == 3 {
+                    format!(
+                        " ({:.1}% of the {} blocked rays)",
+                        100.0 * ratio(c.hits, st.shadow_blocked),
+                        st.shadow_blocked
+                    )
+                } else {
+                    String::new()
+                };
                 println!(
-                    "{:<12} {:>12} {:>14} {:>11.1}%",
+                    "{:<12} {:>12} {:>14} {:>11.1}%{of_blocked}",
                     RayKind::NAMES[k],
                     c.hits,
                     c.hits + c.misses,
