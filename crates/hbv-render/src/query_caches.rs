@@ -17,6 +17,10 @@ pub struct QueryCacheConfig {
     /// default: the seed says secondary rays bypass the caches; this exists to measure what a
     /// cache would give them.
     pub secondary: bool,
+    /// Diagnostic: a shadow cache per light *sample* (sample `k` of every shading point shares
+    /// one) instead of per light, to measure whether rays towards the same part of an area
+    /// light are more coherent. Off by default.
+    pub shadow_per_sample: bool,
 }
 
 impl Default for QueryCacheConfig {
@@ -26,6 +30,7 @@ impl Default for QueryCacheConfig {
             shadow: true,
             primary: true,
             secondary: false,
+            shadow_per_sample: false,
         }
     }
 }
@@ -37,6 +42,7 @@ impl QueryCacheConfig {
             shadow: false,
             primary: false,
             secondary: false,
+            shadow_per_sample: false,
         }
     }
 
@@ -51,16 +57,16 @@ impl QueryCacheConfig {
 }
 
 /// The caches of one render thread (one tile): a [`LastHitCache`] per intersection ray kind
-/// that [`QueryCacheConfig`] enables, and a [`ShadowCache`] per light, made on the light's first
-/// shadow ray. Mutable, unshared state; the accelerators and the mesh are shared.
+/// that [`QueryCacheConfig`] enables, and a [`ShadowCache`] per light (or per light sample),
+/// made on its first shadow ray. Mutable, unshared state; the accelerators and the mesh are shared.
 pub struct QueryCaches<'a> {
     config: QueryCacheConfig,
     mesh: &'a TriangleMesh,
     shadow_accelerator: &'a (dyn Accelerator + 'static),
     /// Indexed by [`RayKind::index`] (0 primary, 1 reflected, 2 transmitted).
     last_hit: [Option<LastHitCache<'a, dyn Accelerator>>; 3],
-    /// Indexed by light.
-    shadow: Vec<Option<ShadowCache<'a, dyn Accelerator>>>,
+    /// Indexed by light, then by sample (one slot unless `shadow_per_sample`).
+    shadow: Vec<Vec<Option<ShadowCache<'a, dyn Accelerator>>>>,
 }
 
 impl<'a> QueryCaches<'a> {
@@ -90,17 +96,31 @@ impl<'a> QueryCaches<'a> {
         self.last_hit.get_mut(kind.index())?.as_mut()
     }
 
-    /// The shadow cache of light `light`, if shadow rays are cached.
-    pub fn shadow(&mut self, light: u32) -> Option<&mut ShadowCache<'a, dyn Accelerator>> {
+    /// The shadow cache of sample `sample` of light `light`, if shadow rays are cached (all
+    /// samples of a light share one unless `shadow_per_sample`).
+    pub fn shadow(
+        &mut self,
+        light: u32,
+        sample: u32,
+    ) -> Option<&mut ShadowCache<'a, dyn Accelerator>> {
         if !self.config.shadow {
             return None;
         }
         let light = light as usize;
+        let slot = if self.config.shadow_per_sample {
+            sample as usize
+        } else {
+            0
+        };
         if self.shadow.len() <= light {
-            self.shadow.resize_with(light + 1, || None);
+            self.shadow.resize_with(light + 1, Vec::new);
+        }
+        let slots = &mut self.shadow[light];
+        if slots.len() <= slot {
+            slots.resize_with(slot + 1, || None);
         }
         let (accelerator, mesh) = (self.shadow_accelerator, self.mesh);
-        Some(self.shadow[light].get_or_insert_with(|| ShadowCache::new(accelerator, mesh)))
+        Some(slots[slot].get_or_insert_with(|| ShadowCache::new(accelerator, mesh)))
     }
 
     /// Hits and misses per ray kind (indexed by [`RayKind::index`]; all lights together).
@@ -111,7 +131,7 @@ impl<'a> QueryCaches<'a> {
                 stats[k] += cache.stats();
             }
         }
-        for cache in self.shadow.iter().flatten() {
+        for cache in self.shadow.iter().flatten().flatten() {
             stats[3] += cache.stats();
         }
         stats

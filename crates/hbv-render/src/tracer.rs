@@ -140,14 +140,15 @@ impl SceneTracer {
         hit
     }
 
-    /// Whether anything blocks a shadow ray towards a sample of light `light`, through the
-    /// tally's shadow cache of that light if it has one. The one shadow query of the renderer.
+    /// Whether anything blocks a shadow ray towards sample `sample` of light `light`, through
+    /// the tally's shadow cache of that light (or light sample) if it has one. The one shadow
+    /// query of the renderer.
     #[inline]
-    pub fn occluded(&self, ray: &Ray, light: u32, tally: &mut RayTally) -> bool {
+    pub fn occluded(&self, ray: &Ray, light: u32, sample: u32, tally: &mut RayTally) -> bool {
         let kind = RayKind::Shadow { light };
         let start = tally.time_queries.then(Instant::now);
         let mut work = TraversalStats::default();
-        let cache = tally.caches.as_mut().and_then(|c| c.shadow(light));
+        let cache = tally.caches.as_mut().and_then(|c| c.shadow(light, sample));
         let blocked = match (cache, tally.count_work) {
             (Some(cache), true) => cache.occluded_counted(ray, &mut work),
             (Some(cache), false) => cache.occluded(ray),

@@ -171,6 +171,13 @@ fn image_is_identical_for_grid_or_bvh_per_ray_kind_with_caches_on_or_off() {
                 ..QueryCacheConfig::default()
             },
         ),
+        (
+            "a shadow cache per light sample",
+            QueryCacheConfig {
+                shadow_per_sample: true,
+                ..QueryCacheConfig::default()
+            },
+        ),
     ];
     let mut threads = [1, 3].iter().cycle();
     for (name, primary, shadow) in &pairs {

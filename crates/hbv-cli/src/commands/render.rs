@@ -93,6 +93,9 @@ pub struct RenderArgs {
     /// what caching secondary rays would give.
     #[arg(long = "cache-secondary", conflicts_with = "no_cache")]
     pub cache_secondary: bool,
+    /// Diagnostic: one shadow cache per light sample instead of per light.
+    #[arg(long = "shadow-cache-per-sample", conflicts_with = "no_cache")]
+    pub shadow_cache_per_sample: bool,
     /// Worker threads; 0 uses every core.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
@@ -178,6 +181,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     } else {
         QueryCacheConfig {
             secondary: args.cache_secondary,
+            shadow_per_sample: args.shadow_cache_per_sample,
             ..QueryCacheConfig::default()
         }
     };
@@ -301,6 +305,7 @@ impl Report<'_> {
                 "primary": self.caches.primary,
                 "shadow": self.caches.shadow,
                 "secondary": self.caches.secondary,
+                "shadow_per_sample": self.caches.shadow_per_sample,
             },
             "threads": self.threads,
             "load_seconds": self.load_seconds,
