@@ -76,3 +76,42 @@ fn a_bad_scene_is_one_line_naming_file_line_and_key() {
     assert!(err.contains("bad.toml: line 7: mesh[0].file"), "{err}");
     assert!(!dir.path().join("x.png").exists());
 }
+
+#[test]
+fn grid_per_ray_kind_and_caches_off_render_the_default_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let variants: [&[&str]; 4] = [
+        &[],
+        &["--primary", "grid", "--shadow", "grid"],
+        &["--no-cache"],
+        &["--primary", "grid", "--cache-secondary"],
+    ];
+    let mut images = Vec::new();
+    for (i, extra) in variants.iter().enumerate() {
+        let out = format!("v{i}.png");
+        let mut args = vec!["render", "-o", &out, "--json"];
+        args.extend(SMALL);
+        args.extend(*extra);
+        let o = hbv_in(dir.path(), &args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let kinds = &report["by_kind"];
+        if extra.contains(&"--no-cache") {
+            assert!(kinds["shadow"]["cache"].is_null());
+        } else {
+            let lookups = kinds["shadow"]["cache"]["lookups"].as_u64().unwrap();
+            assert_eq!(lookups, kinds["shadow"]["rays"].as_u64().unwrap());
+            assert!(kinds["primary"]["cache"]["hit_rate"].as_f64().unwrap() > 0.0);
+            let hits = kinds["shadow"]["cache"]["hits"].as_u64().unwrap();
+            assert!(hits <= kinds["shadow"]["blocked"].as_u64().unwrap());
+        }
+        if extra.contains(&"grid") {
+            assert_eq!(report["primary"], "grid");
+            assert!(kinds["primary"]["mailbox_skips"].as_u64().unwrap() > 0);
+        }
+        images.push(std::fs::read(dir.path().join(&out)).unwrap());
+    }
+    for (i, image) in images.iter().enumerate() {
+        assert!(*image == images[0], "variant {i} renders a different image");
+    }
+}

@@ -201,7 +201,7 @@ impl<'a> Whitted<'a> {
                 // Stop just short of the light, so that its own panel does not block it.
                 let shadow = Ray::new(origin, sample.direction)
                     .with_interval(0.0, sample.distance * (1.0 - 1e-4));
-                if !self.tracer.occluded(&shadow, index as u32, tally) {
+                if !self.tracer.occluded(&shadow, index as u32, k, tally) {
                     sum += material.brdf(wo, sample.direction, point.shading)
                         * sample.irradiance
                         * cos;

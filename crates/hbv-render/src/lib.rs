@@ -6,6 +6,8 @@
 //! - [`Camera`], [`Light`], [`Material`]: what the scene file describes.
 //! - [`SceneTracer`]: the two places where rays meet the accelerators, one for intersection rays
 //!   and one for shadow rays, counting rays (and optionally work and time) by [`RayKind`].
+//! - [`QueryCacheConfig`]: which ray kinds go through object caches (a shadow cache per light
+//!   and tile, a last-hit cache for primary rays), which never change the image.
 //! - [`integrator`]: Whitted's recursion (shadow rays, mirror reflection, Fresnel refraction).
 //! - [`render()`]: tiles in parallel into a [`Film`], with a progress bar.
 //! - [`image_output`]: PNG (8-bit sRGB) and OpenEXR (float) files, passes and cost heatmaps.
@@ -36,6 +38,7 @@ pub mod light;
 pub mod material;
 pub mod optics;
 pub mod progress;
+pub mod query_caches;
 pub mod ray_kind;
 pub mod render;
 pub mod sampler;
@@ -46,6 +49,7 @@ pub use camera::Camera;
 pub use film::{Film, Pass};
 pub use light::Light;
 pub use material::Material;
+pub use query_caches::QueryCacheConfig;
 pub use ray_kind::{RayKind, RayStats};
 pub use render::{render, Frame, RenderConfig};
 pub use scene::{RenderSettings, Scene, SceneError};

@@ -2,6 +2,7 @@
 
 use std::ops::AddAssign;
 
+use hbv::cache::CacheStats;
 use hbv::TraversalStats;
 
 /// Why a ray was cast. Every query of the renderer names its kind, so that structures and caches
@@ -42,6 +43,11 @@ pub struct RayStats {
     pub work: [TraversalStats; 4],
     /// Nanoseconds inside the accelerators' queries; zero unless queries are timed.
     pub query_nanos: [u64; 4],
+    /// Object cache hits and misses (all lights' shadow caches together); zero for kinds that
+    /// bypass the caches.
+    pub cache: [CacheStats; 4],
+    /// Shadow rays found blocked (the most a shadow cache could hit).
+    pub shadow_blocked: u64,
 }
 
 impl RayStats {
@@ -66,6 +72,8 @@ impl AddAssign for RayStats {
             self.rays[k] += o.rays[k];
             self.work[k] += o.work[k];
             self.query_nanos[k] += o.query_nanos[k];
+            self.cache[k] += o.cache[k];
         }
+        self.shadow_blocked += o.shadow_blocked;
     }
 }

@@ -12,7 +12,7 @@ use crate::progress::RenderProgress;
 use crate::ray_kind::RayStats;
 use crate::sampler::PixelSampler;
 use crate::scene::Scene;
-use crate::tracer::{RayTally, SceneTracer};
+use crate::tracer::SceneTracer;
 
 /// How to render (what to render is in the scene's [`RenderSettings`](crate::RenderSettings)).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -50,7 +50,9 @@ pub struct Frame {
 ///
 /// Sample `s` of pixel `(x, y)` draws its random numbers from [`PixelSampler`] seeded with
 /// `y · width + x` and runs entirely on one thread, and the film is assembled in pixel order, so
-/// the image does not depend on the number of threads or the order tiles finish in. With one
+/// the image does not depend on the number of threads or the order tiles finish in. Each tile
+/// gets fresh object caches ([`SceneTracer::tally`], built over `scene.mesh`, the mesh the
+/// tracer's accelerators must come from); caches change the work, never a hit. With one
 /// sample per pixel the primary ray goes through the pixel's centre; with more, each sample is
 /// jittered uniformly inside the pixel.
 pub fn render(scene: &Scene, tracer: &SceneTracer, config: &RenderConfig) -> Frame {
@@ -69,7 +71,7 @@ pub fn render(scene: &Scene, tracer: &SceneTracer, config: &RenderConfig) -> Fra
     let done: Vec<(Vec<(usize, PixelValue)>, RayStats)> = tiles
         .par_iter()
         .map(|&(x0, y0)| {
-            let mut tally = RayTally::new(config.count_work, config.time_queries);
+            let mut tally = tracer.tally(&scene.mesh, config.count_work, config.time_queries);
             let mut pixels = Vec::with_capacity((tile * tile) as usize);
             for y in y0..(y0 + tile).min(height) {
                 for x in x0..(x0 + tile).min(width) {
@@ -102,10 +104,11 @@ pub fn render(scene: &Scene, tracer: &SceneTracer, config: &RenderConfig) -> Fra
                     pixels.push((index, value));
                 }
             }
-            let rays = rays_so_far.fetch_add(tally.stats.total_rays(), Ordering::Relaxed)
-                + tally.stats.total_rays();
+            let stats = tally.into_stats();
+            let rays =
+                rays_so_far.fetch_add(stats.total_rays(), Ordering::Relaxed) + stats.total_rays();
             progress.tile_done(rays as f64 / start.elapsed().as_secs_f64().max(1e-9));
-            (pixels, tally.stats)
+            (pixels, stats)
         })
         .collect();
     let seconds = start.elapsed().as_secs_f64();

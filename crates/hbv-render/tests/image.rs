@@ -1,5 +1,6 @@
 //! The built-in Cornell box rendered small: compared with the reference image in the repository,
-//! and identical whichever layout, builder and thread count traced it.
+//! and identical whichever layout, builder, thread count, structure per ray kind (BVH or uniform
+//! grid) and cache setting traced it.
 //!
 //! Tolerance against the reference (`tests/reference/cornell_64x48.png`, made by this test with
 //! `HBV_UPDATE_REFERENCE=1`): mean absolute difference at most 0.5 (of 255) per channel, and at
@@ -15,9 +16,10 @@ use hbv::bvh::build::{
 };
 use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
 use hbv::bvh::BuildTree;
+use hbv::grid::{GridConfig, UniformGrid};
 use hbv::{Accelerator, BruteForce, TriangleMesh};
 use hbv_render::image_output::pass_image;
-use hbv_render::{render, Frame, Pass, RenderConfig, Scene, SceneTracer};
+use hbv_render::{render, Frame, Pass, QueryCacheConfig, RenderConfig, Scene, SceneTracer};
 
 const WIDTH: u32 = 64;
 const HEIGHT: u32 = 48;
@@ -33,11 +35,15 @@ fn small_cornell_box() -> Scene {
 
 fn render_with(scene: &Scene, accelerator: Arc<dyn Accelerator>, threads: usize) -> Frame {
     let tracer = SceneTracer::new(accelerator.clone(), accelerator);
+    render_traced(scene, &tracer, threads)
+}
+
+fn render_traced(scene: &Scene, tracer: &SceneTracer, threads: usize) -> Frame {
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .unwrap()
-        .install(|| render(scene, &tracer, &RenderConfig::default()))
+        .install(|| render(scene, tracer, &RenderConfig::default()))
 }
 
 fn wide8(scene: &Scene) -> Arc<dyn Accelerator> {
@@ -128,5 +134,74 @@ fn image_is_identical_for_every_layout_builder_and_thread_count() {
             film.radiance == expected,
             "{name} on {threads} threads renders a different image"
         );
+    }
+}
+
+#[test]
+fn image_is_identical_for_grid_or_bvh_per_ray_kind_with_caches_on_or_off() {
+    let scene = small_cornell_box();
+    let bvh = wide8(&scene);
+    let expected = render_traced(
+        &scene,
+        &SceneTracer::new(bvh.clone(), bvh.clone()).with_caches(QueryCacheConfig::none()),
+        1,
+    );
+    let grid: Arc<dyn Accelerator> = Arc::new(UniformGrid::new(&scene.mesh, GridConfig::default()));
+    let unboxed: Arc<dyn Accelerator> = Arc::new(UniformGrid::new(
+        &scene.mesh,
+        GridConfig {
+            mailbox: false,
+            ..GridConfig::default()
+        },
+    ));
+    let pairs = [
+        ("grid/grid", grid.clone(), grid.clone()),
+        ("grid/bvh", grid.clone(), bvh.clone()),
+        ("bvh/grid", bvh.clone(), grid.clone()),
+        ("bvh/bvh", bvh.clone(), bvh.clone()),
+        ("unmailboxed grid", unboxed.clone(), unboxed),
+    ];
+    let caches = [
+        ("no caches", QueryCacheConfig::none()),
+        ("default caches", QueryCacheConfig::default()),
+        (
+            "secondary caches too",
+            QueryCacheConfig {
+                secondary: true,
+                ..QueryCacheConfig::default()
+            },
+        ),
+        (
+            "a shadow cache per light sample",
+            QueryCacheConfig {
+                shadow_per_sample: true,
+                ..QueryCacheConfig::default()
+            },
+        ),
+    ];
+    let mut threads = [1, 3].iter().cycle();
+    for (name, primary, shadow) in &pairs {
+        for (cache_name, cache) in caches {
+            let tracer = SceneTracer::new(primary.clone(), shadow.clone()).with_caches(cache);
+            let threads = *threads.next().unwrap();
+            let frame = render_traced(&scene, &tracer, threads);
+            assert!(
+                frame.film.radiance == expected.film.radiance,
+                "{name} with {cache_name} on {threads} threads renders a different image"
+            );
+            assert_eq!(
+                frame.stats.rays, expected.stats.rays,
+                "{name}, {cache_name}"
+            );
+            for (k, c) in frame.stats.cache.iter().enumerate() {
+                let cached = match k {
+                    0 => cache.primary,
+                    1 | 2 => cache.secondary,
+                    _ => cache.shadow,
+                };
+                let lookups = c.hits + c.misses;
+                assert_eq!(lookups, if cached { frame.stats.rays[k] } else { 0 });
+            }
+        }
     }
 }

@@ -8,13 +8,16 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
+use hbv::grid::{GridConfig, UniformGrid};
 use hbv::Accelerator;
 use hbv_cli::atomic_write::write_atomically;
 use hbv_render::image_output::{pass_image, to_exr};
-use hbv_render::{render, Frame, Pass, RayKind, RenderConfig, Scene, SceneTracer};
+use hbv_render::{
+    render, Frame, Pass, QueryCacheConfig, RayKind, RenderConfig, Scene, SceneTracer,
+};
 use serde_json::json;
 
-use super::build_args::{thread_pool, BuildArgs, BuilderName, LayoutName};
+use super::build_args::{thread_pool, AccelName, BuildArgs, BuilderName, LayoutName};
 
 /// Extra passes, each written beside the image as `OUT.PASS.png`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -76,6 +79,23 @@ pub struct RenderArgs {
     pub layout: LayoutName,
     #[command(flatten)]
     pub build: BuildArgs,
+    /// Structure for intersection rays (primary, reflected, transmitted).
+    #[arg(long, value_enum, default_value_t = AccelName::Bvh)]
+    pub primary: AccelName,
+    /// Structure for shadow rays.
+    #[arg(long, value_enum, default_value_t = AccelName::Bvh)]
+    pub shadow: AccelName,
+    /// No object caches (by default: a shadow cache per light and tile, a last-hit cache for
+    /// primary rays). The image is the same either way.
+    #[arg(long = "no-cache")]
+    pub no_cache: bool,
+    /// Diagnostic: also give reflected and transmitted rays a last-hit cache each, to measure
+    /// what caching secondary rays would give.
+    #[arg(long = "cache-secondary", conflicts_with = "no_cache")]
+    pub cache_secondary: bool,
+    /// Diagnostic: one shadow cache per light sample instead of per light.
+    #[arg(long = "shadow-cache-per-sample", conflicts_with = "no_cache")]
+    pub shadow_cache_per_sample: bool,
     /// Worker threads; 0 uses every core.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
@@ -126,9 +146,51 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let load_seconds = start.elapsed().as_secs_f64();
 
     let build = args.build.or_builder(BuilderName::BinnedSah);
-    let (tree, build_seconds) = pool.install(|| build.build(&scene.mesh));
-    let accelerator: Arc<dyn Accelerator> = Arc::from(args.layout.lay_out(&tree, &scene.mesh));
-    let tracer = SceneTracer::new(accelerator.clone(), accelerator);
+    let uses = |accel| args.primary == accel || args.shadow == accel;
+    let mut build_seconds = 0.0;
+    let bvh = uses(AccelName::Bvh).then(|| {
+        let (tree, seconds) = pool.install(|| build.build(&scene.mesh));
+        let start = Instant::now();
+        let laid_out: Arc<dyn Accelerator> = Arc::from(args.layout.lay_out(&tree, &scene.mesh));
+        build_seconds += seconds + start.elapsed().as_secs_f64();
+        let described = format!("{:?} over {}", args.layout, build.describe()).to_lowercase();
+        (laid_out, described)
+    });
+    let grid = uses(AccelName::Grid).then(|| {
+        let start = Instant::now();
+        let grid = pool.install(|| UniformGrid::new(&scene.mesh, GridConfig::default()));
+        build_seconds += start.elapsed().as_secs_f64();
+        let r = grid.shape().map_or([0; 3], |s| s.resolution);
+        let described = format!(
+            "uniform grid {}×{}×{} (λ = {}, mailboxes)",
+            r[0],
+            r[1],
+            r[2],
+            grid.config().lambda
+        );
+        (Arc::new(grid) as Arc<dyn Accelerator>, described)
+    });
+    let chosen = |accel| match accel {
+        AccelName::Bvh => bvh.clone(),
+        AccelName::Grid => grid.clone(),
+    };
+    let (primary, primary_name) = chosen(args.primary).expect("built above");
+    let (shadow, shadow_name) = chosen(args.shadow).expect("built above");
+    let caches = if args.no_cache {
+        QueryCacheConfig::none()
+    } else {
+        QueryCacheConfig {
+            secondary: args.cache_secondary,
+            shadow_per_sample: args.shadow_cache_per_sample,
+            ..QueryCacheConfig::default()
+        }
+    };
+    let tracer = SceneTracer::new(primary, shadow).with_caches(caches);
+    let structure = if args.primary == args.shadow {
+        primary_name
+    } else {
+        format!("{primary_name} for intersection rays, {shadow_name} for shadow rays")
+    };
 
     let config = RenderConfig {
         count_work: !args.no_work_count,
@@ -150,7 +212,10 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         scene_name: &scene_name,
         scene: &scene,
         frame: &frame,
-        structure: format!("{:?} over {}", args.layout, build.describe()).to_lowercase(),
+        structure,
+        primary: args.primary,
+        shadow: args.shadow,
+        caches,
         threads: pool.current_num_threads(),
         load_seconds,
         build_seconds,
@@ -190,6 +255,9 @@ struct Report<'a> {
     scene: &'a Scene,
     frame: &'a Frame,
     structure: String,
+    primary: AccelName,
+    shadow: AccelName,
+    caches: QueryCacheConfig,
     threads: usize,
     load_seconds: f64,
     build_seconds: f64,
@@ -215,6 +283,9 @@ impl Report<'_> {
                     "nodes_per_ray": counted.then(|| ratio(st.work[k].nodes_visited, st.work[k].rays)),
                     "query_seconds": (timed > 0).then(|| st.query_nanos[k] as f64 * 1e-9),
                     "time_share": (timed > 0).then(|| st.query_nanos[k] as f64 / timed as f64),
+                    "cache": cache_json(st.cache[k]),
+                    "blocked": (k == 3).then_some(st.shadow_blocked),
+                    "mailbox_skips": counted.then_some(st.work[k].mailbox_skips),
                 }),
             );
         }
@@ -228,6 +299,14 @@ impl Report<'_> {
             "spp": s.spp,
             "max_depth": s.max_depth,
             "structure": self.structure,
+            "primary": accel_name(self.primary),
+            "shadow": accel_name(self.shadow),
+            "caches": {
+                "primary": self.caches.primary,
+                "shadow": self.caches.shadow,
+                "secondary": self.caches.secondary,
+                "shadow_per_sample": self.caches.shadow_per_sample,
+            },
             "threads": self.threads,
             "load_seconds": self.load_seconds,
             "build_seconds": self.build_seconds,
@@ -291,9 +370,75 @@ impl Report<'_> {
                 st.total_work().tests_per_ray()
             );
         }
+        self.print_caches_and_mailboxes();
         for p in &self.outputs {
             println!("wrote      {}", p.display());
         }
+    }
+}
+
+impl Report<'_> {
+    /// Cache hit rates per cached ray kind, and the tests the grid's mailboxes saved.
+    fn print_caches_and_mailboxes(&self) {
+        let st = &self.frame.stats;
+        let cached: Vec<usize> = (0..4)
+            .filter(|&k| st.cache[k].hits + st.cache[k].misses > 0)
+            .collect();
+        if cached.is_empty() {
+            println!("caches     none");
+        } else {
+            println!(
+                "{:<12} {:>12} {:>14} {:>12}",
+                "cache", "hits", "lookups", "hit rate"
+            );
+            for k in cached {
+                let c = st.cache[k];
+                let of_blocked = if k == 3 {
+                    format!(
+                        " ({:.1}% of the {} blocked rays)",
+                        100.0 * ratio(c.hits, st.shadow_blocked),
+                        st.shadow_blocked
+                    )
+                } else {
+                    String::new()
+                };
+                println!(
+                    "{:<12} {:>12} {:>14} {:>11.1}%{of_blocked}",
+                    RayKind::NAMES[k],
+                    c.hits,
+                    c.hits + c.misses,
+                    100.0 * c.hit_rate()
+                );
+            }
+        }
+        let skips: Vec<usize> = (0..4).filter(|&k| st.work[k].mailbox_skips > 0).collect();
+        for k in skips {
+            let w = st.work[k];
+            println!(
+                "mailboxes  {}: {} repeated tests saved ({:.1} per ray, {:.1}% of the tests)",
+                RayKind::NAMES[k],
+                w.mailbox_skips,
+                ratio(w.mailbox_skips, w.rays),
+                100.0 * ratio(w.mailbox_skips, w.mailbox_skips + w.triangles_tested)
+            );
+        }
+    }
+}
+
+/// `{hits, lookups, hit_rate}`, or null for a kind that bypasses the caches.
+fn cache_json(c: hbv::cache::CacheStats) -> serde_json::Value {
+    let lookups = c.hits + c.misses;
+    if lookups == 0 {
+        serde_json::Value::Null
+    } else {
+        json!({"hits": c.hits, "lookups": lookups, "hit_rate": c.hit_rate()})
+    }
+}
+
+fn accel_name(accel: AccelName) -> &'static str {
+    match accel {
+        AccelName::Bvh => "bvh",
+        AccelName::Grid => "grid",
     }
 }
 
