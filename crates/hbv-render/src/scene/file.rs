@@ -9,7 +9,7 @@ use std::ops::Range;
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
-use hbv::TriangleMesh;
+use hbv::{MeshError, TriangleMesh};
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -124,15 +124,30 @@ pub fn load_scene(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
         file: path.to_path_buf(),
         error,
     })?;
+    let folder = path.parent().unwrap_or(Path::new("."));
+    parse_scene(&source, path, &|mesh: &Path| {
+        TriangleMesh::load(folder.join(mesh))
+    })
+}
+
+/// Reads a scene from its TOML `source`, as if from the file `path` (named in errors); each
+/// mesh's `file` is handed to `load_mesh` as written in the scene. [`load_scene`] loads them
+/// from disk, relative to the scene's folder; the fuzz target hands back a built-in mesh, so
+/// that any text exercises the whole scene reader without touching files.
+pub fn parse_scene(
+    source: &str,
+    path: &Path,
+    load_mesh: &dyn Fn(&Path) -> Result<TriangleMesh, MeshError>,
+) -> Result<Scene, SceneError> {
     let ctx = Context {
         file: path.to_path_buf(),
-        source: &source,
+        source,
     };
-    let parsed: SceneFile = toml::from_str(&source).map_err(|e| {
+    let parsed: SceneFile = toml::from_str(source).map_err(|e| {
         let span = e.span().unwrap_or(0..0);
         ctx.error_at(&span, &ctx.key_at(span.start), e.message().trim())
     })?;
-    ctx.build(parsed, path.parent().unwrap_or(Path::new(".")))
+    ctx.build(parsed, load_mesh)
 }
 
 /// The file being read, for error messages.
@@ -195,7 +210,11 @@ impl Context<'_> {
         }
     }
 
-    fn build(&self, file: SceneFile, folder: &Path) -> Result<Scene, SceneError> {
+    fn build(
+        &self,
+        file: SceneFile,
+        load_mesh: &dyn Fn(&Path) -> Result<TriangleMesh, MeshError>,
+    ) -> Result<Scene, SceneError> {
         let settings = self.settings(&file.render)?;
         let camera = match &file.camera {
             Some(c) => self.camera(c)?,
@@ -256,8 +275,8 @@ impl Context<'_> {
                 }
             };
             let file_key = format!("mesh[{i}].file");
-            let mesh_path = folder.join(mesh_entry.file.get_ref());
-            let mesh = TriangleMesh::load(&mesh_path).map_err(|error| SceneError::Mesh {
+            let mesh_path = Path::new(mesh_entry.file.get_ref());
+            let mesh = load_mesh(mesh_path).map_err(|error| SceneError::Mesh {
                 file: self.file.clone(),
                 line: self.line_of(mesh_entry.file.span().start),
                 key: file_key.clone(),

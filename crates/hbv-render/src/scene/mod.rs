@@ -13,7 +13,7 @@ use glam::Vec3;
 use hbv::TriangleMesh;
 
 pub use error::SceneError;
-pub use file::load_scene;
+pub use file::{load_scene, parse_scene};
 pub use gltf_scene::load_gltf_scene;
 pub use transform::Transform;
 
