@@ -21,7 +21,7 @@ use crate::build_options::BuildOptions;
 use crate::bvh_file::{describe, save};
 use crate::mesh::PyMesh;
 use crate::ray_queries::{any_hits, closest_hits, every_hit, hit_counts, inside, RayArgs};
-use crate::thread_pool::fill_rows;
+use crate::thread_pool::run_on_threads;
 
 /// A bounding volume hierarchy over a mesh, answering ray and point queries.
 ///
@@ -275,27 +275,15 @@ impl PyBvh {
         let n = points.len();
         let (mut point, mut distance) = (vec![[0.0f64; 3]; n], vec![0.0f64; n]);
         let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0f64; n], vec![0.0f64; n]);
-        let columns = (
-            &mut point[..],
-            (&mut distance[..], (&mut prim[..], (&mut u[..], &mut v[..]))),
-        );
-        py.detach(|| {
-            let search = self.closest_tree();
-            fill_rows(
-                threads,
-                columns,
-                |first, (point, (distance, (prim, (u, v))))| {
-                    for k in 0..point.len() {
-                        let found = search.closest_point_f64(points[first + k]);
-                        point[k] = found.map_or([f64::NAN; 3], |c| c.point.to_array());
-                        distance[k] = found.map_or(f64::INFINITY, |c| c.distance);
-                        prim[k] = found.map_or(-1, |c| c.prim as i64);
-                        u[k] = found.map_or(0.0, |c| c.u);
-                        v[k] = found.map_or(0.0, |c| c.v);
-                    }
-                },
-            )
-        })?;
+        let found =
+            py.detach(|| run_on_threads(threads, || self.closest_tree().closest_points(&points)))?;
+        for (k, found) in found.into_iter().enumerate() {
+            point[k] = found.map_or([f64::NAN; 3], |c| c.point.to_array());
+            distance[k] = found.map_or(f64::INFINITY, |c| c.distance);
+            prim[k] = found.map_or(-1, |c| c.prim as i64);
+            u[k] = found.map_or(0.0, |c| c.u);
+            v[k] = found.map_or(0.0, |c| c.v);
+        }
         let point = point.into_flattened();
         let out = PyDict::new(py);
         out.set_item("point", point.into_pyarray(py).reshape([n, 3])?)?;
