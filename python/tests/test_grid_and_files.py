@@ -136,3 +136,17 @@ def test_leaf_sizes_up_to_255_give_the_same_answers():
     assert hbv.BVH(mesh, builder="median", leaf_size=255).stats()["leaves"] <= len(f) // 128 + 1
     with pytest.raises(ValueError, match="leaf_size: expected 1 to 255, got 256"):
         hbv.BVH(mesh, leaf_size=256)
+
+
+def test_readme_python_example_runs(tmp_path, monkeypatch, capsys):
+    readme = os.path.join(os.path.dirname(__file__), "..", "..", "README.md")
+    if not os.path.exists(readme):
+        pytest.skip("README.md not beside the tests")
+    text = open(readme, encoding="utf-8").read()
+    section = text[text.index("## Python"):]
+    code = section[section.index("```python") + len("```python"):]
+    code = code[: code.index("```")]
+    monkeypatch.chdir(tmp_path)  # it writes cube.hbv
+    exec(compile(code, "README.md (Python example)", "exec"), {})
+    assert (tmp_path / "cube.hbv").exists()
+    assert "[ True False]" in capsys.readouterr().out

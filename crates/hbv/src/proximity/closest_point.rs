@@ -23,20 +23,37 @@ pub struct ClosestPoint {
     pub v: f64,
 }
 
-/// A node of the search tree: its box in f64, and its children (`first..first + count` in
-/// `nodes`) or its triangles (`first..first + count` in `triangles`).
+/// A node of the search tree, 32 bytes (two to a cache line): its box in f32 (the tree's own
+/// box, so converting it to f64 for the distance is exact), and its children (`first..first +
+/// count` in `nodes`) or, when [`SearchNode::LEAF`] is set in `count`, its triangles.
 #[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
 struct SearchNode {
-    min: DVec3,
-    max: DVec3,
+    min: Vec3,
+    max: Vec3,
     first: u32,
     count: u32,
-    leaf: bool,
+}
+
+impl SearchNode {
+    /// Bit of `count` that marks a leaf.
+    const LEAF: u32 = 1 << 31;
+
+    #[inline]
+    fn is_leaf(&self) -> bool {
+        self.count & Self::LEAF != 0
+    }
+
+    /// Its children's or triangles' indices.
+    #[inline]
+    fn range(&self) -> std::ops::Range<u32> {
+        self.first..self.first + (self.count & !Self::LEAF)
+    }
 }
 
 /// A BVH laid out for nearest-point queries: any [`BuildTree`]'s nodes, children side by side,
-/// boxes and triangles converted to f64 once (f32 to f64 is exact, so the answers are those of
-/// the f64 brute force over the same f32 vertices).
+/// boxes and triangles kept in f32 and converted to f64 where used (f32 to f64 is exact, so the
+/// answers are those of the f64 brute force over the same f32 vertices).
 ///
 /// **Search** (branch and bound, as in Larsen et al. 1999 and Ericson §6.5): keep the best
 /// squared distance `d²` so far; at a node compute each child box's squared distance
@@ -48,8 +65,9 @@ struct SearchNode {
 #[derive(Clone, Debug)]
 pub struct ClosestPointTree {
     nodes: Vec<SearchNode>,
-    /// `(face id, vertices)` in leaf order.
-    triangles: Vec<(u32, [DVec3; 3])>,
+    /// `(face id, vertices)` in leaf order; f32 as in the mesh (half the memory of f64; the
+    /// conversion to f64 for the search is exact).
+    triangles: Vec<(u32, [Vec3; 3])>,
 }
 
 /// Relative slack of the box pruning test: a box is pruned only when its distance exceeds the
@@ -90,11 +108,10 @@ impl ClosestPointTree {
     fn node_for(&mut self, tree: &BuildTree, mesh: &TriangleMesh, id: NodeId) -> SearchNode {
         let node = tree.node(id);
         let mut search = SearchNode {
-            min: node.bounds.min.as_dvec3(),
-            max: node.bounds.max.as_dvec3(),
+            min: node.bounds.min,
+            max: node.bounds.max,
             first: 0,
             count: 0,
-            leaf: node.is_leaf(),
         };
         if let NodeContent::Leaf(prims) = &node.content {
             search.first = self.triangles.len() as u32;
@@ -103,10 +120,10 @@ impl ClosestPointTree {
                 if t.is_degenerate() {
                     continue;
                 }
-                let v = [t.p0.as_dvec3(), t.p1.as_dvec3(), t.p2.as_dvec3()];
+                let v = [t.p0, t.p1, t.p2];
                 self.triangles.push((p, v));
             }
-            search.count = self.triangles.len() as u32 - search.first;
+            search.count = (self.triangles.len() as u32 - search.first) | SearchNode::LEAF;
         }
         search
     }
@@ -185,7 +202,7 @@ impl ClosestPointTree {
         let mut best_d2 = f64::INFINITY;
         let mut consider = |local: u32, best_d2: &mut f64| {
             let (prim, [a, b, c]) = &self.triangles[local as usize];
-            let q = closest_point_on_triangle(p, *a, *b, *c);
+            let q = closest_point_on_triangle(p, a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
             let d2 = (p - q.point).length_squared();
             let closer =
                 d2 < *best_d2 || (d2 == *best_d2 && best.is_some_and(|(b, _)| *prim < b.prim));
@@ -211,8 +228,8 @@ impl ClosestPointTree {
                 continue;
             }
             let node = self.nodes[index as usize];
-            let range = node.first..node.first + node.count;
-            if node.leaf {
+            let range = node.range();
+            if node.is_leaf() {
                 for local in range {
                     consider(local, &mut best_d2);
                 }
@@ -235,7 +252,9 @@ impl ClosestPointTree {
 /// Squared distance from `p` to the node's box (0 inside): `Σ max(min - p, 0, p - max)²`.
 #[inline]
 fn box_distance_squared(node: &SearchNode, p: DVec3) -> f64 {
-    let d = (node.min - p).max(p - node.max).max(DVec3::ZERO);
+    let d = (node.min.as_dvec3() - p)
+        .max(p - node.max.as_dvec3())
+        .max(DVec3::ZERO);
     d.length_squared()
 }
 
