@@ -34,6 +34,7 @@ Usage (setup in bench/python_requirements.txt):
 
     ../py-bench-venv/bin/python bench/python_compare.py                 # every ../shared/scenes/*.ply
     ../py-bench-venv/bin/python bench/python_compare.py MESH.ply --rays 262144 --repeat 5 --json out.json
+    ../py-bench-venv/bin/python bench/python_compare.py --closest-only             # nearest points only
 """
 
 import argparse
@@ -62,6 +63,8 @@ def parse_args():
     p.add_argument("--repeat", type=int, default=5, help="timed rounds (default 5)")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--json", type=pathlib.Path, help="also write every figure to this file")
+    p.add_argument("--closest-only", action="store_true",
+                   help="only the nearest-surface-point comparison (no ray sets)")
     return p.parse_args()
 
 
@@ -141,7 +144,8 @@ def compare_mesh(path, args):
 
     cores = os.cpu_count()
     rows = []
-    for set_name, (o, d) in ray_sets(v, args.rays, args.seed).items():
+    sets = {} if args.closest_only else ray_sets(v, args.rays, args.seed)
+    for set_name, (o, d) in sets.items():
         o3d_rays = o3d.core.Tensor(np.hstack([o, d]))
         m = args.trimesh_rays
         contenders = {
@@ -196,6 +200,12 @@ def compare_mesh(path, args):
 
 
 def print_tables(rows, closest, cores):
+    if rows:
+        print_ray_table(rows, cores)
+    print_closest_table(closest)
+
+
+def print_ray_table(rows, cores):
     print(f"\nClosest hit, Mrays/s (one thread = 1; all = {cores} threads); ratios are hbv / other.\n")
     print("| mesh | triangles | rays | hbv 1 | embreex 1 | **hbv / embreex (1)** | Open3D 1 | hbv all | "
           "**hbv all / hbv 1** | Open3D all | **hbv / Open3D (all)** | trimesh-embree 1 | "
@@ -209,6 +219,9 @@ def print_tables(rows, closest, cores):
               f"**{m['hbv_all'] / m['hbv_1']:.2f}×** | {m['open3d_all']:.2f} | "
               f"**{m['hbv_all'] / m['open3d_all']:.2f}×** | {m['trimesh_embree_1']:.2f} | {tri} | "
               f"{100 * r['same_prim_as_embree']:.2f} % |")
+
+
+def print_closest_table(closest):
     print("\nNearest surface point, M queries/s; ratios are hbv / Open3D.\n")
     print("| mesh | points | hbv 1 | Open3D 1 | **hbv / Open3D (1)** | hbv all | Open3D all | "
           "**hbv / Open3D (all)** | max \\|Δ distance\\| / diagonal |")

@@ -19,10 +19,14 @@ Answers are exact (watertight ray/triangle test, checked against brute force) an
 >>> bool(hits["hit"][0]), float(hits["t"][0]), int(hits["prim"][0])
 (True, 1.0, 0)
 
+``hbv.Grid(mesh)`` (a uniform grid) answers the same ray queries, identically. ``bvh.save(path)``
+writes the tree with its mesh to a ``.hbv`` file; ``hbv.load_bvh(path)`` reads it back without
+building again.
+
 ``hbv.trimesh.RayMeshIntersector`` answers trimesh's ray queries with the same meaning.
 """
 
-from ._hbv import BVH, Mesh, __version__, load
+from ._hbv import BVH, Grid, Mesh, __version__, load, load_bvh
 from . import trimesh
 
-__all__ = ["BVH", "Mesh", "load", "trimesh", "__version__"]
+__all__ = ["BVH", "Grid", "Mesh", "load", "load_bvh", "trimesh", "__version__"]

@@ -45,7 +45,10 @@ def load(path: Union[str, PathLike[str]]) -> Mesh:
     """Reads .obj, .ply, .gltf or .glb; OSError / ValueError naming file, place and reason."""
 
 class BVH:
-    """A bounding volume hierarchy over a mesh, answering ray and point queries."""
+    """A bounding volume hierarchy over a mesh, answering ray and point queries.
+
+    leaf_size: most triangles per leaf, 1 to 255 (default: the builder's).
+    """
 
     def __init__(
         self,
@@ -97,5 +100,59 @@ class BVH:
     def closest_point(self, points: _Floats, threads: Optional[int] = None) -> ClosestPoints: ...
     def expected_tests(self) -> float: ...
     def sah_cost(self, traversal: float = 1.0, intersection: float = 1.0) -> float: ...
+    def stats(self) -> dict[str, Any]: ...
+    def save(self, path: Union[str, PathLike[str]], overwrite: bool = False) -> None:
+        """Writes the tree and its mesh to a .hbv file, atomically; FileExistsError if the file
+        exists and overwrite is False."""
+    def __reduce__(self) -> Any: ...
+
+def load_bvh(path: Union[str, PathLike[str]], layout: Optional[str] = None) -> BVH:
+    """Reads a .hbv file (BVH.save or `hbv build`) without building again. FileNotFoundError /
+    OSError if it cannot be read; ValueError naming the file and the reason if it is not a valid
+    .hbv file (magic number, version, truncation, checksum, a tree that does not fit its mesh)."""
+
+class Grid:
+    """A uniform grid over a mesh (lam: density, lam * N^(1/3) cells on the longest axis;
+    default 2). Same answers as BVH for the ray queries and contains; no closest_point (a grid
+    has no distance-ordered search: use BVH)."""
+
+    def __init__(self, mesh: Mesh, lam: Optional[float] = None) -> None: ...
+    @property
+    def mesh(self) -> Mesh: ...
+    @property
+    def lam(self) -> float: ...
+    def intersect(
+        self,
+        origins: _Floats,
+        directions: _Floats,
+        tmin: _Bound = None,
+        tmax: _Bound = None,
+        threads: Optional[int] = None,
+    ) -> Hits: ...
+    def occluded(
+        self,
+        origins: _Floats,
+        directions: _Floats,
+        tmin: _Bound = None,
+        tmax: _Bound = None,
+        threads: Optional[int] = None,
+    ) -> npt.NDArray[np.bool_]: ...
+    def intersect_all(
+        self,
+        origins: _Floats,
+        directions: _Floats,
+        tmin: _Bound = None,
+        tmax: _Bound = None,
+        threads: Optional[int] = None,
+    ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.float32], npt.NDArray[np.int64]]: ...
+    def count(
+        self,
+        origins: _Floats,
+        directions: _Floats,
+        tmin: _Bound = None,
+        tmax: _Bound = None,
+        threads: Optional[int] = None,
+    ) -> npt.NDArray[np.int64]: ...
+    def contains(self, points: _Floats, threads: Optional[int] = None) -> npt.NDArray[np.bool_]: ...
     def stats(self) -> dict[str, Any]: ...
     def __reduce__(self) -> Any: ...

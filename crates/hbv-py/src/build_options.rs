@@ -16,8 +16,9 @@ use pyo3::PyResult;
 
 pub const BUILDERS: [&str; 5] = ["binned-sah", "sweep-sah", "insertion", "median", "lbvh"];
 pub const LAYOUTS: [&str; 5] = ["wide8", "wide4", "ordered", "recursive", "skip"];
-/// The widest leaf every layout accepts (the wide layouts hold at most 64 triangles a leaf).
-pub const MAX_LEAF_SIZE: usize = 64;
+/// The widest leaf the builders make (`LeafPolicy` clamps to 255); the wide layouts split
+/// leaves of more than 64 triangles themselves, the other layouts take any size.
+pub const MAX_LEAF_SIZE: usize = 255;
 
 /// What a BVH is built from: the constructor's arguments, checked.
 #[derive(Clone, Debug)]

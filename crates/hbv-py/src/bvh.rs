@@ -1,25 +1,27 @@
 //! `hbv.BVH`: a tree over a mesh and every query on it, NumPy in and out, on all cores with the
 //! GIL released.
 
+use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
+use hbv::bvh::file::BvhFile;
 use hbv::bvh::layout::Wide8Layout;
 use hbv::bvh::{expected_tests, sah_cost, BuildTree, SahWeights};
-use hbv::geometry::Ray;
-use hbv::glam::{DVec3, Vec3};
-use hbv::proximity::{contains, ClosestPointTree};
-use hbv::{Accelerator, AllHits, TriangleMesh};
+use hbv::glam::DVec3;
+use hbv::proximity::ClosestPointTree;
+use hbv::{Accelerator, TriangleMesh};
 use numpy::{IntoPyArray, PyArray1, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
-use rayon::prelude::*;
 
-use crate::arrays::{float_array, interval_bound, BoundSlice, Floats, IntervalBound};
+use crate::arrays::float_array;
 use crate::build_options::BuildOptions;
+use crate::bvh_file::{describe, save};
 use crate::mesh::PyMesh;
-use crate::thread_pool::{fill_rows, run_on_threads, GRAIN};
+use crate::ray_queries::{any_hits, closest_hits, every_hit, hit_counts, inside, RayArgs};
+use crate::thread_pool::run_on_threads;
 
 /// A bounding volume hierarchy over a mesh, answering ray and point queries.
 ///
@@ -28,7 +30,10 @@ use crate::thread_pool::{fill_rows, run_on_threads, GRAIN};
 /// builder: "binned-sah" (default), "sweep-sah", "insertion", "median" or "lbvh".
 /// layout: "wide8" (default, the fastest), "wide4", "ordered", "recursive" or "skip".
 /// optimize: reinsertion optimization (Bittner et al. 2013) after building.
-/// leaf_size: most triangles per leaf (1 to 64; default: the builder's).
+///
+/// save(path) writes the tree with its mesh to a `.hbv` file; hbv.load_bvh(path) reads it back
+/// without building again.
+/// leaf_size: most triangles per leaf (1 to 255; default: the builder's).
 #[pyclass(name = "BVH", module = "hbv", frozen)]
 pub struct PyBvh {
     mesh: Py<PyMesh>,
@@ -42,75 +47,8 @@ pub struct PyBvh {
     /// The nearest-point search tree (built on first use).
     closest: OnceLock<ClosestPointTree>,
     build_seconds: f64,
-}
-
-/// The ray arguments of a query, read and checked.
-struct RayArgs<'py> {
-    origins: Floats<'py>,
-    directions: Floats<'py>,
-    tmin: IntervalBound<'py>,
-    tmax: IntervalBound<'py>,
-    len: usize,
-}
-
-/// The rays of a query as slices the worker threads read (no GIL needed).
-#[derive(Clone, Copy)]
-struct RayBatch<'a> {
-    origins: &'a [f32],
-    directions: &'a [f32],
-    tmin: BoundSlice<'a>,
-    tmax: BoundSlice<'a>,
-    len: usize,
-}
-
-impl<'py> RayArgs<'py> {
-    fn read(
-        origins: &Bound<'py, PyAny>,
-        directions: &Bound<'py, PyAny>,
-        tmin: Option<&Bound<'py, PyAny>>,
-        tmax: Option<&Bound<'py, PyAny>>,
-    ) -> PyResult<Self> {
-        let (origins, len) = float_array("origins", origins, Some(3), None)?;
-        let (directions, _) =
-            float_array("directions", directions, Some(3), Some((len, "origins")))?;
-        Ok(Self {
-            origins,
-            directions,
-            tmin: interval_bound("tmin", tmin, 0.0, len)?,
-            tmax: interval_bound("tmax", tmax, f32::INFINITY, len)?,
-            len,
-        })
-    }
-
-    fn batch(&self) -> RayBatch<'_> {
-        RayBatch {
-            origins: self.origins.as_slice(),
-            directions: self.directions.as_slice(),
-            tmin: self.tmin.as_slice(),
-            tmax: self.tmax.as_slice(),
-            len: self.len,
-        }
-    }
-}
-
-impl RayBatch<'_> {
-    #[inline]
-    fn ray(&self, i: usize) -> Ray {
-        Ray {
-            origin: Vec3::from_slice(&self.origins[3 * i..3 * i + 3]),
-            direction: Vec3::from_slice(&self.directions[3 * i..3 * i + 3]),
-            tmin: self.tmin.at(i),
-            tmax: self.tmax.at(i),
-        }
-    }
-
-    fn rays(&self) -> Vec<Ray> {
-        (0..self.len)
-            .into_par_iter()
-            .with_min_len(GRAIN)
-            .map(|i| self.ray(i))
-            .collect()
-    }
+    /// The settings line saved with the tree (`hbv build`'s words), or read from its file.
+    settings: String,
 }
 
 /// Query points as f64 `(x, y, z)`: float32 or float64 input, shape (N, 3).
@@ -139,6 +77,42 @@ fn read_points(obj: &Bound<'_, PyAny>) -> PyResult<Vec<DVec3>> {
 }
 
 impl PyBvh {
+    /// A BVH over a tree built elsewhere (loaded from a file): laid out, not built.
+    pub fn from_parts(
+        py: Python<'_>,
+        mesh: Py<PyMesh>,
+        triangles: Arc<TriangleMesh>,
+        options: BuildOptions,
+        tree: BuildTree,
+        settings: String,
+    ) -> Self {
+        let (accel, wide) = py.detach(|| options.lay_out(&tree, &triangles));
+        let wide_cell = OnceLock::new();
+        if let Some(w) = wide {
+            let _ = wide_cell.set(w);
+        }
+        Self {
+            mesh,
+            triangles,
+            options,
+            tree,
+            accel,
+            wide: wide_cell,
+            closest: OnceLock::new(),
+            build_seconds: 0.0,
+            settings,
+        }
+    }
+
+    /// The `.hbv` file's contents: the mesh, the tree and the settings line.
+    pub fn to_file(&self) -> BvhFile {
+        BvhFile {
+            mesh: (*self.triangles).clone(),
+            tree: self.tree.clone(),
+            settings: self.settings.clone(),
+        }
+    }
+
     fn wide(&self) -> &Wide8Layout {
         self.wide
             .get_or_init(|| Arc::new(Wide8Layout::new(&self.tree, &self.triangles)))
@@ -177,6 +151,7 @@ impl PyBvh {
             let (accel, wide) = options.lay_out(&tree, &triangles);
             (tree, accel, wide, start.elapsed().as_secs_f64())
         });
+        let settings = describe(&options);
         let wide_cell = OnceLock::new();
         if let Some(w) = wide {
             let _ = wide_cell.set(w);
@@ -190,6 +165,7 @@ impl PyBvh {
             wide: wide_cell,
             closest: OnceLock::new(),
             build_seconds,
+            settings,
         })
     }
 
@@ -222,34 +198,7 @@ impl PyBvh {
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        let batch = args.batch();
-        let n = batch.len;
-        let (mut hit, mut t, mut prim) = (vec![false; n], vec![0.0f32; n], vec![0i64; n]);
-        let (mut u, mut v) = (vec![0.0f32; n], vec![0.0f32; n]);
-        let accel = &*self.accel;
-        let columns = (
-            &mut hit[..],
-            (&mut t[..], (&mut prim[..], (&mut u[..], &mut v[..]))),
-        );
-        py.detach(|| {
-            fill_rows(threads, columns, |first, (hit, (t, (prim, (u, v))))| {
-                for k in 0..hit.len() {
-                    let found = accel.intersect(&batch.ray(first + k));
-                    hit[k] = found.is_some();
-                    t[k] = found.map_or(f32::INFINITY, |h| h.t);
-                    prim[k] = found.map_or(-1, |h| h.prim as i64);
-                    u[k] = found.map_or(0.0, |h| h.u);
-                    v[k] = found.map_or(0.0, |h| h.v);
-                }
-            })
-        })?;
-        let out = PyDict::new(py);
-        out.set_item("hit", hit.into_pyarray(py))?;
-        out.set_item("t", t.into_pyarray(py))?;
-        out.set_item("prim", prim.into_pyarray(py))?;
-        out.set_item("u", u.into_pyarray(py))?;
-        out.set_item("v", v.into_pyarray(py))?;
-        Ok(out)
+        closest_hits(py, &*self.accel, &args, threads)
     }
 
     /// Any hit: a bool array, true where anything lies in [tmin, tmax] along the ray.
@@ -264,17 +213,7 @@ impl PyBvh {
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        let batch = args.batch();
-        let mut occluded = vec![false; batch.len];
-        let accel = &*self.accel;
-        py.detach(|| {
-            fill_rows(threads, &mut occluded[..], |first, out| {
-                for (k, o) in out.iter_mut().enumerate() {
-                    *o = accel.occluded(&batch.ray(first + k));
-                }
-            })
-        })?;
-        Ok(occluded.into_pyarray(py))
+        any_hits(py, &*self.accel, &args, threads)
     }
 
     /// Every hit along each ray, found in one traversal per ray: a tuple of arrays
@@ -291,24 +230,7 @@ impl PyBvh {
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        let batch = args.batch();
-        let hits = py.detach(|| {
-            run_on_threads(threads, || {
-                let rays = batch.rays();
-                self.wide().all_hits_batch(&rays)
-            })
-        })?;
-        let ray: Vec<i64> = hits.iter().map(|(r, _)| *r as i64).collect();
-        let t: Vec<f32> = hits.iter().map(|(_, h)| h.t).collect();
-        let prim: Vec<i64> = hits.iter().map(|(_, h)| h.prim as i64).collect();
-        PyTuple::new(
-            py,
-            [
-                ray.into_pyarray(py).into_any(),
-                t.into_pyarray(py).into_any(),
-                prim.into_pyarray(py).into_any(),
-            ],
-        )
+        every_hit(py, || self.wide(), &args, threads)
     }
 
     /// The number of hits along each ray (int64): the length of its `intersect_all` list.
@@ -323,19 +245,7 @@ impl PyBvh {
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        let batch = args.batch();
-        let mut counts = vec![0i64; batch.len];
-        py.detach(|| {
-            let wide = self.wide();
-            fill_rows(threads, &mut counts[..], |first, out| {
-                let mut hits = Vec::new();
-                for (k, c) in out.iter_mut().enumerate() {
-                    wide.all_hits(&batch.ray(first + k), &mut hits);
-                    *c = hits.len() as i64;
-                }
-            })
-        })?;
-        Ok(counts.into_pyarray(py))
+        hit_counts(py, || self.wide(), &args, threads)
     }
 
     /// Whether each point lies inside the (closed) mesh: bool array. The majority of three
@@ -347,19 +257,7 @@ impl PyBvh {
         points: &Bound<'py, PyAny>,
         threads: Option<usize>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let (points, _) = float_array("points", points, Some(3), None)?;
-        let points = points.as_slice();
-        let mut inside = vec![false; points.len() / 3];
-        py.detach(|| {
-            let wide = self.wide();
-            fill_rows(threads, &mut inside[..], |first, out| {
-                for (k, o) in out.iter_mut().enumerate() {
-                    let p = &points[3 * (first + k)..3 * (first + k) + 3];
-                    *o = contains(wide, Vec3::from_slice(p));
-                }
-            })
-        })?;
-        Ok(inside.into_pyarray(py))
+        inside(py, || self.wide(), points, threads)
     }
 
     /// The nearest surface point to each point: a dict of arrays `point` (N, 3) float64,
@@ -377,27 +275,15 @@ impl PyBvh {
         let n = points.len();
         let (mut point, mut distance) = (vec![[0.0f64; 3]; n], vec![0.0f64; n]);
         let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0f64; n], vec![0.0f64; n]);
-        let columns = (
-            &mut point[..],
-            (&mut distance[..], (&mut prim[..], (&mut u[..], &mut v[..]))),
-        );
-        py.detach(|| {
-            let search = self.closest_tree();
-            fill_rows(
-                threads,
-                columns,
-                |first, (point, (distance, (prim, (u, v))))| {
-                    for k in 0..point.len() {
-                        let found = search.closest_point_f64(points[first + k]);
-                        point[k] = found.map_or([f64::NAN; 3], |c| c.point.to_array());
-                        distance[k] = found.map_or(f64::INFINITY, |c| c.distance);
-                        prim[k] = found.map_or(-1, |c| c.prim as i64);
-                        u[k] = found.map_or(0.0, |c| c.u);
-                        v[k] = found.map_or(0.0, |c| c.v);
-                    }
-                },
-            )
-        })?;
+        let found =
+            py.detach(|| run_on_threads(threads, || self.closest_tree().closest_points(&points)))?;
+        for (k, found) in found.into_iter().enumerate() {
+            point[k] = found.map_or([f64::NAN; 3], |c| c.point.to_array());
+            distance[k] = found.map_or(f64::INFINITY, |c| c.distance);
+            prim[k] = found.map_or(-1, |c| c.prim as i64);
+            u[k] = found.map_or(0.0, |c| c.u);
+            v[k] = found.map_or(0.0, |c| c.v);
+        }
         let point = point.into_flattened();
         let out = PyDict::new(py);
         out.set_item("point", point.into_pyarray(py).reshape([n, 3])?)?;
@@ -406,6 +292,14 @@ impl PyBvh {
         out.set_item("u", u.into_pyarray(py))?;
         out.set_item("v", v.into_pyarray(py))?;
         Ok(out)
+    }
+
+    /// Saves the tree with its mesh to `path` in the `.hbv` format (docs/BVH_FILE.md), for
+    /// `hbv.load_bvh(path)` or the `hbv` command line. Written atomically (a temporary file,
+    /// then renamed into place); FileExistsError if `path` exists, unless `overwrite=True`.
+    #[pyo3(signature = (path, overwrite=false))]
+    fn save(&self, py: Python<'_>, path: PathBuf, overwrite: bool) -> PyResult<()> {
+        save(py, self, path, overwrite)
     }
 
     /// The tree's expected number of intersection tests per random line, E[X] =
@@ -449,6 +343,7 @@ impl PyBvh {
         out.set_item("expected_tests", self.expected_tests())?;
         out.set_item("sah_cost", sah_cost(&self.tree, SahWeights::default()))?;
         out.set_item("build_seconds", self.build_seconds)?;
+        out.set_item("settings", &self.settings)?;
         Ok(out)
     }
 
@@ -474,6 +369,13 @@ impl PyBvh {
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
         let py = slf.py();
         let me = slf.get();
+        if me.options.builder == "saved" {
+            // Loaded from a file that names no builder of this package: pickled as the file.
+            let bytes = pyo3::types::PyBytes::new(py, &me.to_file().to_bytes());
+            let from_bytes = py.import("hbv._hbv")?.getattr("_bvh_from_bytes")?;
+            let args = (bytes, me.options.layout.clone()).into_pyobject(py)?;
+            return PyTuple::new(py, [from_bytes, args.into_any()]);
+        }
         let args = (
             me.mesh.clone_ref(py),
             me.options.builder.clone(),

@@ -9,13 +9,19 @@ use pyo3::prelude::*;
 mod arrays;
 mod build_options;
 mod bvh;
+mod bvh_file;
+mod grid;
 mod mesh;
+mod ray_queries;
 mod thread_pool;
 
 #[pymodule]
 fn _hbv(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<mesh::PyMesh>()?;
     m.add_class::<bvh::PyBvh>()?;
+    m.add_class::<grid::PyGrid>()?;
+    m.add_function(wrap_pyfunction!(bvh_file::load_bvh, m)?)?;
+    m.add_function(wrap_pyfunction!(bvh_file::_bvh_from_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::load, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -1,17 +1,20 @@
-//! Property tests: every hit along a ray, from the wide layouts, equals brute force's list.
+//! Property tests: every hit along a ray, from the wide layouts and the uniform grid, equals
+//! brute force's list.
 
 use hbv::bvh::build::{
     BinnedSahBuilder, BinnedSahConfig, Builder, InsertionBuilder, InsertionConfig,
 };
 use hbv::bvh::layout::{Wide4Layout, Wide8Layout};
 use hbv::geometry::Ray;
+use hbv::grid::{GridConfig, UniformGrid};
 use hbv::{AllHits, BruteForce, TriangleMesh};
 use proptest::prelude::*;
 
 mod common;
 use common::{closed_mesh, mesh_and_rays, order, soup};
 
-/// The wide layouts of an insertion tree and a binned-SAH tree.
+/// The wide layouts of an insertion tree and a binned-SAH tree, and uniform grids (sparse and
+/// dense, with and without mailboxes; `leaf` picks the configuration).
 fn structures(
     mesh: &TriangleMesh,
     order: hbv::bvh::build::InsertionOrder,
@@ -35,6 +38,16 @@ fn structures(
             Box::new(Wide8Layout::new(&insertion, mesh)),
         ),
         ("binned-sah wide8", Box::new(Wide8Layout::new(&sah, mesh))),
+        (
+            "uniform grid",
+            Box::new(UniformGrid::new(
+                mesh,
+                GridConfig {
+                    lambda: [0.3, 1.0, 2.0, 6.0][leaf % 4],
+                    mailbox: leaf.is_multiple_of(2),
+                },
+            )),
+        ),
     ]
 }
 

@@ -70,6 +70,13 @@ fn assert_closest_points_agree(
             let got = search.closest_point(*p);
             prop_assert_eq!(want, got, "{}: point {} {:?}", name, i, p);
         }
+        // The batch form (Morton order, each search seeded with its neighbour's triangle):
+        // the same answers.
+        let as_f64: Vec<_> = points.iter().map(|p| p.as_dvec3()).collect();
+        for (i, got) in search.closest_points(&as_f64).into_iter().enumerate() {
+            let want = closest_point_brute_force(mesh, as_f64[i]);
+            prop_assert_eq!(want, got, "{} batch: point {} {:?}", name, i, points[i]);
+        }
     }
     Ok(())
 }

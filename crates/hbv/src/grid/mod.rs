@@ -8,7 +8,9 @@
 //! | `triangle_box.rs` | [`triangle_overlaps_box`]: exact separating-axis test (Akenine-Möller 2001) |
 //! | `dda.rs` | [`CellWalk`]: the cells a ray crosses, in order (Amanatides & Woo 1987) |
 //! | `mailbox.rs` | [`Mailbox`]: a ray never tests a triangle twice |
+//! | `all_hits.rs` | [`AllHits`](crate::AllHits) for the grid: every hit along the ray, one walk |
 
+mod all_hits;
 mod dda;
 mod grid_shape;
 mod mailbox;

@@ -121,7 +121,7 @@ impl UniformGrid {
 
     /// The triangles (indices into `self.triangles`) listed in cell `cell`.
     #[inline]
-    fn cell_items(&self, cell: usize) -> &[u32] {
+    pub(super) fn cell_items(&self, cell: usize) -> &[u32] {
         &self.items[self.starts[cell] as usize..self.starts[cell + 1] as usize]
     }
 
@@ -137,7 +137,7 @@ impl UniformGrid {
     /// component), with a wide factor; the first is the box slack of the BVH layouts
     /// (`PreparedRay::BOX_SLACK`, 2^-18) with a margin of 4.
     #[inline]
-    fn t_margin(&self, ray: &Ray, t: f64) -> f64 {
+    pub(super) fn t_margin(&self, ray: &Ray, t: f64) -> f64 {
         let m = ray.origin.as_dvec3().abs().max_element() + self.magnitude;
         let d = ray.direction.abs().max_element() as f64;
         t.abs() * (1.0 / 65_536.0) + 64.0 * f32::EPSILON as f64 * m / d
@@ -145,9 +145,14 @@ impl UniformGrid {
 
     /// Whether f64 cannot walk this ray accurately within the pad (origin absurdly far away).
     #[inline]
-    fn beyond_f64(&self, shape: &GridShape, ray: &Ray) -> bool {
+    pub(super) fn beyond_f64(&self, shape: &GridShape, ray: &Ray) -> bool {
         ray.origin.as_dvec3().abs().max_element() * (1.0 / 4_503_599_627_370_496.0) * 64.0
             > shape.pad
+    }
+
+    /// The listed triangles (non-degenerate, in face order) and their face ids.
+    pub(super) fn listed_triangles(&self) -> (&[Triangle], &[u32]) {
+        (&self.triangles, &self.prims)
     }
 
     /// Tests `local` (an index into `self.triangles`) unless the mailbox has seen it.

@@ -1,9 +1,12 @@
 //! The nearest point of a mesh's surface to a query point: a branch-and-bound search of a BVH.
 
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 use super::point_triangle::closest_point_on_triangle;
+use crate::bvh::morton::morton_code;
 use crate::bvh::{BuildTree, NodeContent, NodeId};
+use crate::geometry::Aabb;
 use crate::mesh::TriangleMesh;
 
 /// The nearest surface point to a query point.
@@ -20,20 +23,37 @@ pub struct ClosestPoint {
     pub v: f64,
 }
 
-/// A node of the search tree: its box in f64, and its children (`first..first + count` in
-/// `nodes`) or its triangles (`first..first + count` in `triangles`).
+/// A node of the search tree, 32 bytes (two to a cache line): its box in f32 (the tree's own
+/// box, so converting it to f64 for the distance is exact), and its children (`first..first +
+/// count` in `nodes`) or, when [`SearchNode::LEAF`] is set in `count`, its triangles.
 #[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
 struct SearchNode {
-    min: DVec3,
-    max: DVec3,
+    min: Vec3,
+    max: Vec3,
     first: u32,
     count: u32,
-    leaf: bool,
+}
+
+impl SearchNode {
+    /// Bit of `count` that marks a leaf.
+    const LEAF: u32 = 1 << 31;
+
+    #[inline]
+    fn is_leaf(&self) -> bool {
+        self.count & Self::LEAF != 0
+    }
+
+    /// Its children's or triangles' indices.
+    #[inline]
+    fn range(&self) -> std::ops::Range<u32> {
+        self.first..self.first + (self.count & !Self::LEAF)
+    }
 }
 
 /// A BVH laid out for nearest-point queries: any [`BuildTree`]'s nodes, children side by side,
-/// boxes and triangles converted to f64 once (f32 to f64 is exact, so the answers are those of
-/// the f64 brute force over the same f32 vertices).
+/// boxes and triangles kept in f32 and converted to f64 where used (f32 to f64 is exact, so the
+/// answers are those of the f64 brute force over the same f32 vertices).
 ///
 /// **Search** (branch and bound, as in Larsen et al. 1999 and Ericson §6.5): keep the best
 /// squared distance `d²` so far; at a node compute each child box's squared distance
@@ -45,8 +65,9 @@ struct SearchNode {
 #[derive(Clone, Debug)]
 pub struct ClosestPointTree {
     nodes: Vec<SearchNode>,
-    /// `(face id, vertices)` in leaf order.
-    triangles: Vec<(u32, [DVec3; 3])>,
+    /// `(face id, vertices)` in leaf order; f32 as in the mesh (half the memory of f64; the
+    /// conversion to f64 for the search is exact).
+    triangles: Vec<(u32, [Vec3; 3])>,
 }
 
 /// Relative slack of the box pruning test: a box is pruned only when its distance exceeds the
@@ -87,11 +108,10 @@ impl ClosestPointTree {
     fn node_for(&mut self, tree: &BuildTree, mesh: &TriangleMesh, id: NodeId) -> SearchNode {
         let node = tree.node(id);
         let mut search = SearchNode {
-            min: node.bounds.min.as_dvec3(),
-            max: node.bounds.max.as_dvec3(),
+            min: node.bounds.min,
+            max: node.bounds.max,
             first: 0,
             count: 0,
-            leaf: node.is_leaf(),
         };
         if let NodeContent::Leaf(prims) = &node.content {
             search.first = self.triangles.len() as u32;
@@ -100,10 +120,10 @@ impl ClosestPointTree {
                 if t.is_degenerate() {
                     continue;
                 }
-                let v = [t.p0.as_dvec3(), t.p1.as_dvec3(), t.p2.as_dvec3()];
+                let v = [t.p0, t.p1, t.p2];
                 self.triangles.push((p, v));
             }
-            search.count = self.triangles.len() as u32 - search.first;
+            search.count = (self.triangles.len() as u32 - search.first) | SearchNode::LEAF;
         }
         search
     }
@@ -116,11 +136,91 @@ impl ClosestPointTree {
 
     /// [`ClosestPointTree::closest_point`] for an f64 query point.
     pub fn closest_point_f64(&self, p: DVec3) -> Option<ClosestPoint> {
+        self.search(p, None).map(|(c, _)| c)
+    }
+
+    /// The nearest surface point to each of `points` (as [`ClosestPointTree::closest_point_f64`],
+    /// the same answers), in parallel on the current rayon pool.
+    ///
+    /// The points are searched in Morton order (Morton 1966: bits of the quantized x, y, z
+    /// interleaved, so that points near in the order are near in space), in runs of
+    /// [`Self::RUN`]; each search but a run's first starts with the previous point's nearest
+    /// triangle as its best so far. The distance to a neighbour's nearest triangle is a tight
+    /// upper bound, so nodes are pruned from the first step instead of after a first descent.
+    /// The answer does not depend on the seed: the search keeps the least `(d², face id)` over
+    /// every triangle it does not prune, pruning stays conservative, and the seed triangle's
+    /// `d²` is computed exactly as when its leaf is reached.
+    pub fn closest_points(&self, points: &[DVec3]) -> Vec<Option<ClosestPoint>> {
+        let bounds = points
+            .iter()
+            .filter(|p| p.is_finite())
+            .fold(Aabb::EMPTY, |b, p| b.union_point(p.as_vec3()));
+        let mut order: Vec<(u64, u32)> = points
+            .par_iter()
+            .enumerate()
+            .map(|(i, p)| {
+                let code = if p.is_finite() {
+                    morton_code(p.as_vec3(), &bounds)
+                } else {
+                    u64::MAX
+                };
+                (code, i as u32)
+            })
+            .collect();
+        order.par_sort_unstable();
+        let found: Vec<(u32, Option<ClosestPoint>)> = order
+            .par_chunks(Self::RUN)
+            .flat_map_iter(|run| {
+                let mut seed = None;
+                run.iter()
+                    .map(|&(_, i)| {
+                        let found = self.search(points[i as usize], seed);
+                        seed = found.map(|(_, local)| local).or(seed);
+                        (i, found.map(|(c, _)| c))
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let mut out = vec![None; points.len()];
+        for (i, c) in found {
+            out[i as usize] = c;
+        }
+        out
+    }
+
+    /// Points per run of [`ClosestPointTree::closest_points`]: one rayon task, seeded in turn.
+    pub const RUN: usize = 256;
+
+    /// The branch-and-bound search, starting from triangle `seed` (an index into
+    /// `self.triangles`) as the best so far when given; returns the answer and its triangle's
+    /// index into `self.triangles`.
+    fn search(&self, p: DVec3, seed: Option<u32>) -> Option<(ClosestPoint, u32)> {
         if self.nodes.is_empty() || !p.is_finite() {
             return None;
         }
-        let mut best: Option<ClosestPoint> = None;
+        let mut best: Option<(ClosestPoint, u32)> = None;
         let mut best_d2 = f64::INFINITY;
+        let mut consider = |local: u32, best_d2: &mut f64| {
+            let (prim, [a, b, c]) = &self.triangles[local as usize];
+            let q = closest_point_on_triangle(p, a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
+            let d2 = (p - q.point).length_squared();
+            let closer =
+                d2 < *best_d2 || (d2 == *best_d2 && best.is_some_and(|(b, _)| *prim < b.prim));
+            if closer {
+                *best_d2 = d2;
+                let found = ClosestPoint {
+                    point: q.point,
+                    distance: d2.sqrt(),
+                    prim: *prim,
+                    u: q.u,
+                    v: q.v,
+                };
+                best = Some((found, local));
+            }
+        };
+        if let Some(local) = seed {
+            consider(local, &mut best_d2);
+        }
         let mut stack: Vec<(u32, f64)> = Vec::with_capacity(64);
         stack.push((0, box_distance_squared(&self.nodes[0], p)));
         while let Some((index, d2)) = stack.pop() {
@@ -128,32 +228,19 @@ impl ClosestPointTree {
                 continue;
             }
             let node = self.nodes[index as usize];
-            let range = node.first as usize..(node.first + node.count) as usize;
-            if node.leaf {
-                for (prim, [a, b, c]) in &self.triangles[range] {
-                    let q = closest_point_on_triangle(p, *a, *b, *c);
-                    let d2 = (p - q.point).length_squared();
-                    let closer =
-                        d2 < best_d2 || (d2 == best_d2 && best.is_some_and(|b| *prim < b.prim));
-                    if closer {
-                        best_d2 = d2;
-                        best = Some(ClosestPoint {
-                            point: q.point,
-                            distance: d2.sqrt(),
-                            prim: *prim,
-                            u: q.u,
-                            v: q.v,
-                        });
-                    }
+            let range = node.range();
+            if node.is_leaf() {
+                for local in range {
+                    consider(local, &mut best_d2);
                 }
                 continue;
             }
             // Push the children farthest first, so that the nearest is searched next.
             let first = stack.len();
             for child in range {
-                let d2 = box_distance_squared(&self.nodes[child], p);
+                let d2 = box_distance_squared(&self.nodes[child as usize], p);
                 if d2 * (1.0 - PRUNE_SLACK) <= best_d2 {
-                    stack.push((child as u32, d2));
+                    stack.push((child, d2));
                 }
             }
             stack[first..].sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
@@ -165,7 +252,9 @@ impl ClosestPointTree {
 /// Squared distance from `p` to the node's box (0 inside): `Σ max(min - p, 0, p - max)²`.
 #[inline]
 fn box_distance_squared(node: &SearchNode, p: DVec3) -> f64 {
-    let d = (node.min - p).max(p - node.max).max(DVec3::ZERO);
+    let d = (node.min.as_dvec3() - p)
+        .max(p - node.max.as_dvec3())
+        .max(DVec3::ZERO);
     d.length_squared()
 }
 

@@ -1,0 +1,213 @@
+//! The ray and point queries that `hbv.BVH` and `hbv.Grid` share: arguments read and checked
+//! once, answered by any [`Accelerator`] / [`AllHits`] on all cores with the GIL released.
+
+use hbv::geometry::Ray;
+use hbv::glam::Vec3;
+use hbv::proximity::contains;
+use hbv::{Accelerator, AllHits};
+use numpy::{IntoPyArray, PyArray1};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyTuple};
+use rayon::prelude::*;
+
+use crate::arrays::{float_array, interval_bound, BoundSlice, Floats, IntervalBound};
+use crate::thread_pool::{fill_rows, run_on_threads, GRAIN};
+
+/// The ray arguments of a query, read and checked.
+pub struct RayArgs<'py> {
+    origins: Floats<'py>,
+    directions: Floats<'py>,
+    tmin: IntervalBound<'py>,
+    tmax: IntervalBound<'py>,
+    len: usize,
+}
+
+/// The rays of a query as slices the worker threads read (no GIL needed).
+#[derive(Clone, Copy)]
+struct RayBatch<'a> {
+    origins: &'a [f32],
+    directions: &'a [f32],
+    tmin: BoundSlice<'a>,
+    tmax: BoundSlice<'a>,
+    len: usize,
+}
+
+impl<'py> RayArgs<'py> {
+    pub fn read(
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: Option<&Bound<'py, PyAny>>,
+        tmax: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Self> {
+        let (origins, len) = float_array("origins", origins, Some(3), None)?;
+        let (directions, _) =
+            float_array("directions", directions, Some(3), Some((len, "origins")))?;
+        Ok(Self {
+            origins,
+            directions,
+            tmin: interval_bound("tmin", tmin, 0.0, len)?,
+            tmax: interval_bound("tmax", tmax, f32::INFINITY, len)?,
+            len,
+        })
+    }
+
+    fn batch(&self) -> RayBatch<'_> {
+        RayBatch {
+            origins: self.origins.as_slice(),
+            directions: self.directions.as_slice(),
+            tmin: self.tmin.as_slice(),
+            tmax: self.tmax.as_slice(),
+            len: self.len,
+        }
+    }
+}
+
+impl RayBatch<'_> {
+    #[inline]
+    fn ray(&self, i: usize) -> Ray {
+        Ray {
+            origin: Vec3::from_slice(&self.origins[3 * i..3 * i + 3]),
+            direction: Vec3::from_slice(&self.directions[3 * i..3 * i + 3]),
+            tmin: self.tmin.at(i),
+            tmax: self.tmax.at(i),
+        }
+    }
+
+    fn rays(&self) -> Vec<Ray> {
+        (0..self.len)
+            .into_par_iter()
+            .with_min_len(GRAIN)
+            .map(|i| self.ray(i))
+            .collect()
+    }
+}
+
+/// Closest hits: a dict of arrays `hit` (bool), `t` (float32, inf on a miss), `prim` (int64,
+/// -1 on a miss), `u`, `v` (float32 barycentrics, 0 on a miss), as ../shared/RAYS.md.
+pub fn closest_hits<'py>(
+    py: Python<'py>,
+    accel: &dyn Accelerator,
+    args: &RayArgs<'py>,
+    threads: Option<usize>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let batch = args.batch();
+    let n = batch.len;
+    let (mut hit, mut t, mut prim) = (vec![false; n], vec![0.0f32; n], vec![0i64; n]);
+    let (mut u, mut v) = (vec![0.0f32; n], vec![0.0f32; n]);
+    let columns = (
+        &mut hit[..],
+        (&mut t[..], (&mut prim[..], (&mut u[..], &mut v[..]))),
+    );
+    py.detach(|| {
+        fill_rows(threads, columns, |first, (hit, (t, (prim, (u, v))))| {
+            for k in 0..hit.len() {
+                let found = accel.intersect(&batch.ray(first + k));
+                hit[k] = found.is_some();
+                t[k] = found.map_or(f32::INFINITY, |h| h.t);
+                prim[k] = found.map_or(-1, |h| h.prim as i64);
+                u[k] = found.map_or(0.0, |h| h.u);
+                v[k] = found.map_or(0.0, |h| h.v);
+            }
+        })
+    })?;
+    let out = PyDict::new(py);
+    out.set_item("hit", hit.into_pyarray(py))?;
+    out.set_item("t", t.into_pyarray(py))?;
+    out.set_item("prim", prim.into_pyarray(py))?;
+    out.set_item("u", u.into_pyarray(py))?;
+    out.set_item("v", v.into_pyarray(py))?;
+    Ok(out)
+}
+
+/// Any hit: a bool array, true where anything lies in [tmin, tmax] along the ray.
+pub fn any_hits<'py>(
+    py: Python<'py>,
+    accel: &dyn Accelerator,
+    args: &RayArgs<'py>,
+    threads: Option<usize>,
+) -> PyResult<Bound<'py, PyArray1<bool>>> {
+    let batch = args.batch();
+    let mut occluded = vec![false; batch.len];
+    py.detach(|| {
+        fill_rows(threads, &mut occluded[..], |first, out| {
+            for (k, o) in out.iter_mut().enumerate() {
+                *o = accel.occluded(&batch.ray(first + k));
+            }
+        })
+    })?;
+    Ok(occluded.into_pyarray(py))
+}
+
+/// Every hit along each ray, in one traversal per ray: a tuple of arrays (ray index int64,
+/// t float32, prim int64), in ray order and, within a ray, sorted by t (equal t by prim).
+/// `structure` is called off the GIL (it may build the structure on first use).
+pub fn every_hit<'py, 's, A: AllHits + ?Sized + 's>(
+    py: Python<'py>,
+    structure: impl FnOnce() -> &'s A + Send,
+    args: &RayArgs<'py>,
+    threads: Option<usize>,
+) -> PyResult<Bound<'py, PyTuple>> {
+    let batch = args.batch();
+    let hits = py.detach(|| {
+        run_on_threads(threads, || {
+            let rays = batch.rays();
+            structure().all_hits_batch(&rays)
+        })
+    })?;
+    let ray: Vec<i64> = hits.iter().map(|(r, _)| *r as i64).collect();
+    let t: Vec<f32> = hits.iter().map(|(_, h)| h.t).collect();
+    let prim: Vec<i64> = hits.iter().map(|(_, h)| h.prim as i64).collect();
+    PyTuple::new(
+        py,
+        [
+            ray.into_pyarray(py).into_any(),
+            t.into_pyarray(py).into_any(),
+            prim.into_pyarray(py).into_any(),
+        ],
+    )
+}
+
+/// The number of hits along each ray (int64): the length of its `intersect_all` list.
+pub fn hit_counts<'py, 's, A: AllHits + ?Sized + 's>(
+    py: Python<'py>,
+    structure: impl FnOnce() -> &'s A + Send,
+    args: &RayArgs<'py>,
+    threads: Option<usize>,
+) -> PyResult<Bound<'py, PyArray1<i64>>> {
+    let batch = args.batch();
+    let mut counts = vec![0i64; batch.len];
+    py.detach(|| {
+        let structure = structure();
+        fill_rows(threads, &mut counts[..], |first, out| {
+            let mut hits = Vec::new();
+            for (k, c) in out.iter_mut().enumerate() {
+                structure.all_hits(&batch.ray(first + k), &mut hits);
+                *c = hits.len() as i64;
+            }
+        })
+    })?;
+    Ok(counts.into_pyarray(py))
+}
+
+/// Whether each point lies inside the (closed) mesh: bool array. The majority of three ray
+/// parity votes (see hbv::proximity::inside); points on the surface may go either way.
+pub fn inside<'py, 's, A: AllHits + ?Sized + 's>(
+    py: Python<'py>,
+    structure: impl FnOnce() -> &'s A + Send,
+    points: &Bound<'py, PyAny>,
+    threads: Option<usize>,
+) -> PyResult<Bound<'py, PyArray1<bool>>> {
+    let (points, _) = float_array("points", points, Some(3), None)?;
+    let points = points.as_slice();
+    let mut result = vec![false; points.len() / 3];
+    py.detach(|| {
+        let structure = structure();
+        fill_rows(threads, &mut result[..], |first, out| {
+            for (k, o) in out.iter_mut().enumerate() {
+                let p = &points[3 * (first + k)..3 * (first + k) + 3];
+                *o = contains(structure, Vec3::from_slice(p));
+            }
+        })
+    })?;
+    Ok(result.into_pyarray(py))
+}
