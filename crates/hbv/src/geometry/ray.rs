@@ -130,7 +130,8 @@ impl PreparedRay {
     pub fn bound_errors_within(&mut self, scene: &Aabb) {
         let scene_size = scene.min.abs().max(scene.max.abs()).max_element();
         let origin_size = self.origin.abs().max_element();
-        let margin = Self::BOX_SLACK * (origin_size + scene_size) / self.direction[self.kz].abs();
+        // `shear.z` is 1 / d_kz.
+        let margin = Self::BOX_SLACK * (origin_size + scene_size) * self.shear.z.abs();
         // An empty scene (infinite bounds) or overflow: no margin is needed, or none would help.
         self.box_margin = if margin.is_finite() { margin } else { 0.0 };
     }

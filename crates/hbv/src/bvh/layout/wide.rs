@@ -1,9 +1,6 @@
 //! Wide nodes: 4 or 8 children per node, their boxes tested together with SIMD.
 
-mod collapse;
 mod packet;
-
-use collapse::CollapsePlan;
 
 use super::binarize::binarize;
 use super::stack::TraversalStack;
@@ -35,10 +32,12 @@ struct WideNode<const W: usize> {
 /// A BVH of `W`-wide nodes (W = 4 or 8) collapsed from the binary tree, with SIMD box tests,
 /// nearest-first traversal, and leaf triangles in packets of four tested together.
 ///
-/// **Collapse**: which binary nodes become wide nodes and which subtrees become leaves is chosen
-/// by a dynamic program that minimizes the SAH cost of the wide tree, node visits and packet
-/// tests together (Ylitie et al. 2017; `wide/collapse.rs`). Leaves hold up to 16 triangles in
-/// packets of four, tested together.
+/// **Collapse** (after Wald et al. 2008, "Getting rid of packets"; Dammertz et al. 2008): each
+/// wide node starts from a binary node's two children and repeatedly opens the child with the
+/// largest surface area — the one most rays reach — until it has `W` children or only leaves.
+/// A subtree of at most four triangles becomes one leaf: testing four triangles in one packet
+/// costs what testing one does. (An SAH-optimal collapse by dynamic programming, Ylitie et al.
+/// 2017, tested 3–4% fewer boxes per ray but traced 5–15% slower here: BENCHMARKS.md.)
 ///
 /// **Traversal**: the `W` child boxes are tested at once (SSE for 4, AVX for 8 where the CPU has
 /// it, chosen at run time; a scalar twin elsewhere, with identical answers); hit children are
@@ -66,7 +65,7 @@ impl<const W: usize> WideLayout<W> {
         #[allow(clippy::let_unit_value)]
         let () = Self::VALID_WIDTH;
         let binary = binarize(tree);
-        let plan = CollapsePlan::<W>::new(&binary, &subtree_triangle_counts(&binary));
+        let counts = subtree_triangle_counts(&binary);
         let mut layout = Self {
             nodes: Vec::new(),
             packets: Vec::new(),
@@ -74,7 +73,7 @@ impl<const W: usize> WideLayout<W> {
             use_avx: detect_avx(),
         };
         if let Some(root) = binary.root() {
-            let reference = layout.emit(&binary, &plan, mesh, root);
+            let reference = layout.emit(&binary, &counts, mesh, root);
             layout.root = Some((reference, binary.node(root).bounds));
         }
         layout
@@ -88,14 +87,9 @@ impl<const W: usize> WideLayout<W> {
 
     /// Emits the subtree at binary node `id` as the collapse `plan` says, and returns its
     /// reference. Iterative over a work list, so that no depth overflows the call stack.
-    fn emit(
-        &mut self,
-        binary: &BuildTree,
-        plan: &CollapsePlan<W>,
-        mesh: &TriangleMesh,
-        id: NodeId,
-    ) -> u32 {
-        if plan.is_leaf(id) {
+    fn emit(&mut self, binary: &BuildTree, counts: &[u32], mesh: &TriangleMesh, id: NodeId) -> u32 {
+        let is_leaf = |c: NodeId| binary.node(c).is_leaf() || counts[c as usize] as usize <= 4;
+        if is_leaf(id) {
             return self.emit_leaf(mesh, &binary.prims_below(id));
         }
         let root = self.nodes.len() as u32;
@@ -103,14 +97,9 @@ impl<const W: usize> WideLayout<W> {
         let mut work: Vec<(NodeId, u32)> = vec![(id, root)];
         while let Some((id, slot)) = work.pop() {
             let mut node = WideNode::empty();
-            // Largest child first: the lane order is the any-hit traversal's visiting order, and
-            // a ray most likely finds an occluder in the child it most likely reaches.
-            let mut children = plan.children(binary, id);
-            let area = |c: NodeId| binary.node(c).bounds.surface_area();
-            children.sort_by(|&a, &b| area(b).total_cmp(&area(a)));
-            for (lane, c) in children.into_iter().enumerate() {
+            for (lane, c) in collapse::<W>(binary, counts, id).into_iter().enumerate() {
                 node.set_box(lane, &binary.node(c).bounds);
-                node.children[lane] = if plan.is_leaf(c) {
+                node.children[lane] = if is_leaf(c) {
                     self.emit_leaf(mesh, &binary.prims_below(c))
                 } else {
                     let index = self.nodes.len() as u32;
@@ -197,10 +186,8 @@ impl<const W: usize> WideLayout<W> {
                 if let Some(first) = hits.next() {
                     if !NEAREST_FIRST {
                         // Any hit: every hit child must be searched anyway and the first hit
-                        // found ends the query, so skip the sort: visit in lane order (the
-                        // highest lane pushed first, so that the stack gives them back in order).
-                        let rest = hits.0;
-                        for lane in (0..W).rev().filter(|&l| rest & (1 << l) != 0) {
+                        // found ends the query, so skip the sort.
+                        for lane in hits {
                             self.prefetch(children[lane]);
                             stack.push((children[lane], entry[lane]));
                         }
@@ -282,6 +269,32 @@ impl<const W: usize> WideNode<W> {
             self.boxes[1][axis][lane] = bounds.max[axis];
         }
     }
+}
+
+/// The children of a wide node made from binary node `id`: start from its two children and
+/// open the internal child of largest surface area until there are `W` or none can be opened.
+/// A child whose subtree holds at most four triangles is not opened: it becomes one leaf.
+fn collapse<const W: usize>(binary: &BuildTree, counts: &[u32], id: NodeId) -> Vec<NodeId> {
+    let mut children: Vec<NodeId> = binary.node(id).children().to_vec();
+    while children.len() < W {
+        let openable = children
+            .iter()
+            .enumerate()
+            .filter(|(_, &c)| !binary.node(c).is_leaf() && counts[c as usize] > 4)
+            .max_by(|(_, &a), (_, &b)| {
+                binary
+                    .node(a)
+                    .bounds
+                    .surface_area()
+                    .total_cmp(&binary.node(b).bounds.surface_area())
+            });
+        let Some((k, _)) = openable else {
+            break;
+        };
+        let opened = children.swap_remove(k);
+        children.extend_from_slice(binary.node(opened).children());
+    }
+    children
 }
 
 /// Number of triangles below each node of `tree` (by node id).
