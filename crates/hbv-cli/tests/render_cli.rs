@@ -76,3 +76,16 @@ fn a_bad_scene_is_one_line_naming_file_line_and_key() {
     assert!(err.contains("bad.toml: line 7: mesh[0].file"), "{err}");
     assert!(!dir.path().join("x.png").exists());
 }
+
+#[test]
+fn an_image_too_large_for_memory_is_refused_before_rendering() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = hbv_in(
+        dir.path(),
+        &["render", "--width", "32768", "--height", "32768", "--quiet"],
+    );
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("too large"), "{err}");
+    assert!(!dir.path().join("render.png").exists());
+}
