@@ -115,3 +115,16 @@ fn grid_per_ray_kind_and_caches_off_render_the_default_image() {
         assert!(*image == images[0], "variant {i} renders a different image");
     }
 }
+
+#[test]
+fn an_image_too_large_for_memory_is_refused_before_rendering() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = hbv_in(
+        dir.path(),
+        &["render", "--width", "32768", "--height", "32768", "--quiet"],
+    );
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("too large"), "{err}");
+    assert!(!dir.path().join("render.png").exists());
+}

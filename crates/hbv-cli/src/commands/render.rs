@@ -19,6 +19,9 @@ use serde_json::json;
 
 use super::build_args::{thread_pool, AccelName, BuildArgs, BuilderName, LayoutName};
 
+/// Most pixels of an image (8192 × 8192): the film's passes take 40 bytes a pixel.
+const MAX_PIXELS: u64 = 1 << 26;
+
 /// Extra passes, each written beside the image as `OUT.PASS.png`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum PassName {
@@ -143,6 +146,13 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     s.height = args.height.unwrap_or(s.height);
     s.spp = args.spp.unwrap_or(s.spp);
     s.max_depth = args.max_depth.unwrap_or(s.max_depth);
+    if s.width as u64 * s.height as u64 > MAX_PIXELS {
+        bail!(
+            "{}×{} is too large: at most {MAX_PIXELS} pixels (the film holds 40 bytes a pixel)",
+            s.width,
+            s.height
+        );
+    }
     let load_seconds = start.elapsed().as_secs_f64();
 
     let build = args.build.or_builder(BuilderName::BinnedSah);
