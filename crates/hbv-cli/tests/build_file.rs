@@ -1,35 +1,15 @@
 //! `hbv build` and `.hbv` files as input of `info` and `trace`.
 
 use std::path::Path;
-use std::process::{Command, Output};
+
+mod common;
+use common::{hbv, stderr, write_obj};
 
 use glam::Vec3;
 use hbv::geometry::Ray;
 use hbv::mesh::procedural::torus;
-use hbv::{Accelerator, BruteForce, TriangleMesh};
+use hbv::{Accelerator, BruteForce};
 use hbv_cli::{hit_file, ray_file};
-
-fn hbv(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_hbv"))
-        .args(args)
-        .output()
-        .expect("the hbv binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn write_obj(mesh: &TriangleMesh, path: &Path) {
-    let mut s = String::new();
-    for p in mesh.positions() {
-        s += &format!("v {} {} {}\n", p.x, p.y, p.z);
-    }
-    for [a, b, c] in mesh.indices() {
-        s += &format!("f {} {} {}\n", a + 1, b + 1, c + 1);
-    }
-    std::fs::write(path, s).unwrap();
-}
 
 fn p(path: &Path) -> &str {
     path.to_str().unwrap()

@@ -1,7 +1,9 @@
 //! The `hbv` binary from the outside: `info` and `trace`, their outputs and their errors.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+
+mod common;
+use common::{hbv, stderr, stdout, write_obj};
 
 use glam::Vec3;
 use hbv::geometry::Ray;
@@ -10,33 +12,6 @@ use hbv::{Accelerator, BruteForce, TriangleMesh};
 use hbv_cli::{hit_file, ray_file};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
-
-fn hbv(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_hbv"))
-        .args(args)
-        .output()
-        .expect("the hbv binary runs")
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-/// Writes `mesh` as an OBJ file.
-fn write_obj(mesh: &TriangleMesh, path: &Path) {
-    let mut s = String::new();
-    for p in mesh.positions() {
-        s += &format!("v {} {} {}\n", p.x, p.y, p.z);
-    }
-    for [a, b, c] in mesh.indices() {
-        s += &format!("f {} {} {}\n", a + 1, b + 1, c + 1);
-    }
-    std::fs::write(path, s).unwrap();
-}
 
 /// Random rays at `mesh`: from inside its box, from outside at vertices (exactly), axis-aligned,
 /// and finite segments.

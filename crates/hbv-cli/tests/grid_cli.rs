@@ -1,8 +1,10 @@
 //! `--accel grid` of `hbv trace` and `hbv bench`, and `hbv experiment seed-claims`, from the
 //! outside.
 
-use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
+
+mod common;
+use common::{hbv, write_obj};
 
 use glam::Vec3;
 use hbv::geometry::Ray;
@@ -11,13 +13,6 @@ use hbv::{Accelerator, BruteForce, TriangleMesh};
 use hbv_cli::{hit_file, ray_file};
 use serde_json::Value;
 
-fn hbv(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_hbv"))
-        .args(args)
-        .output()
-        .expect("the hbv binary runs")
-}
-
 fn ok(out: Output) -> Output {
     assert!(
         out.status.success(),
@@ -25,17 +20,6 @@ fn ok(out: Output) -> Output {
         String::from_utf8_lossy(&out.stderr)
     );
     out
-}
-
-fn write_obj(mesh: &TriangleMesh, path: &Path) {
-    let mut s = String::new();
-    for p in mesh.positions() {
-        s += &format!("v {} {} {}\n", p.x, p.y, p.z);
-    }
-    for [a, b, c] in mesh.indices() {
-        s += &format!("f {} {} {}\n", a + 1, b + 1, c + 1);
-    }
-    std::fs::write(path, s).unwrap();
 }
 
 /// Rays through the torus's box from a ring around it and from inside, some axis-aligned.
