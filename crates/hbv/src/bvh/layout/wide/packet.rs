@@ -13,15 +13,12 @@
 //! are too loose to pay (they grow with the spread of `1/d`, and with the distance); per-ray
 //! tests are exact and, with SIMD across the node's children, no more expensive per ray.
 
-// The box test indexes the sides, the axes and the lanes of `LaneBoxes` with one counter each.
-#![allow(clippy::needless_range_loop)]
-
 use super::AvxBoxes;
 use std::cmp::Ordering;
 
 use super::{BoxKernel, DefaultBoxes, WideLayout, LEAF, LEAF_COUNT_SHIFT, LEAF_FIRST_MASK};
 use crate::bvh::layout::stack::TraversalStack;
-use crate::bvh::layout::wide_kernels::{BoxRay, LaneBoxes, Lanes};
+use crate::bvh::layout::wide_kernels::{BoxRay, Lanes};
 use crate::geometry::{Aabb, PreparedRay, Ray};
 use crate::query::{record_closer_hit, Hit, PACKET_SIZE};
 use crate::stats::Counter;
@@ -53,7 +50,8 @@ const MAX_ORIGIN_SPREAD: f32 = 1.0 / 64.0;
 /// smallest `tmin` and the largest `tmax` of its rays, contains every ray's widened interval. If
 /// any ray meets the box, the packet does.
 struct PacketBounds {
-    /// Which side of `LaneBoxes` holds the near plane on each axis (1 for negative directions).
+    /// Which side of a box (0 min, 1 max) holds the near plane on each axis (1 for negative
+    /// directions).
     near_side: [usize; 3],
     /// The origin coordinate that minimizes the near distance, per axis.
     near_origin: [f32; 3],
@@ -113,57 +111,35 @@ impl PacketBounds {
         })
     }
 
-    /// Which of the `W` boxes some ray of the packet may meet before `tmax` (the largest `tmax`
-    /// of the packet's rays), and a lower bound of every ray's entry distance into each.
-    ///
-    /// Written lane by lane with plain comparisons so that the compiler turns it into SIMD
-    /// min/max (it is inlined into functions compiled with AVX where the CPU has it).
-    #[inline(always)]
-    fn test<const W: usize>(&self, boxes: &LaneBoxes<W>, tmax: f32) -> (u32, [f32; W]) {
+    /// Whether some ray of the packet may meet `bounds` before `tmax` (the largest `tmax` of
+    /// the packet's rays): the slab test with the bounds above, widened like
+    /// [`Aabb::intersect_interval`].
+    // One counter indexes the axis of the planes and of the bounds alike.
+    #[allow(clippy::needless_range_loop)]
+    fn hits(&self, bounds: &Aabb, tmax: f32) -> bool {
         const SLACK: f32 = PreparedRay::BOX_SLACK;
-        let min = |a: f32, b: f32| if a < b { a } else { b };
-        let max = |a: f32, b: f32| if a > b { a } else { b };
-        let mut near = [f32::NEG_INFINITY; W];
-        let mut far = [f32::INFINITY; W];
+        let planes = [bounds.min, bounds.max];
+        let mut near = f32::NEG_INFINITY;
+        let mut far = f32::INFINITY;
         for axis in 0..3 {
             let side = self.near_side[axis];
             let (lo, hi) = (self.inv_lo[axis], self.inv_hi[axis]);
-            for lane in 0..W {
-                let x = boxes[side][axis][lane] - self.near_origin[axis];
-                let y = boxes[1 - side][axis][lane] - self.far_origin[axis];
-                near[lane] = max(min(x * lo, x * hi), near[lane]);
-                far[lane] = min(max(y * lo, y * hi), far[lane]);
-            }
+            let x = planes[side][axis] - self.near_origin[axis];
+            let y = planes[1 - side][axis] - self.far_origin[axis];
+            near = (x * lo).min(x * hi).max(near);
+            far = (y * lo).max(y * hi).min(far);
         }
-        let mut mask = 0;
-        for lane in 0..W {
-            let n = near[lane]
-                * if near[lane] > 0.0 {
-                    1.0 - SLACK
-                } else {
-                    1.0 + SLACK
-                };
-            let f = far[lane]
-                * if far[lane] > 0.0 {
-                    1.0 + SLACK
-                } else {
-                    1.0 - SLACK
-                };
-            near[lane] = max(n, self.tmin);
-            mask |= u32::from(near[lane] <= min(f, tmax)) << lane;
-        }
-        (mask, near)
+        let near = near * if near > 0.0 { 1.0 - SLACK } else { 1.0 + SLACK };
+        let far = far * if far > 0.0 { 1.0 + SLACK } else { 1.0 - SLACK };
+        near.max(self.tmin) <= far.min(tmax)
     }
+}
 
-    /// [`PacketBounds::test`] for one box.
-    fn hits(&self, bounds: &Aabb, tmax: f32) -> bool {
-        let mut boxes: LaneBoxes<1> = [[[0.0]; 3]; 2];
-        for axis in 0..3 {
-            boxes[0][axis][0] = bounds.min[axis];
-            boxes[1][axis][0] = bounds.max[axis];
-        }
-        self.test::<1>(&boxes, tmax).0 != 0
-    }
+/// The largest `tmax` (as the box tests use it) of the rays in the mask `rays`.
+fn farthest_tmax(prepared: &[PreparedRay; PACKET_SIZE], rays: u32) -> f32 {
+    Lanes(rays)
+        .map(|i| prepared[i].box_tmax())
+        .fold(f32::NEG_INFINITY, f32::max)
 }
 
 impl<const W: usize> WideLayout<W> {
@@ -203,9 +179,7 @@ impl<const W: usize> WideLayout<W> {
         }
         let diagonal = root_bounds.extent().length();
         if let Some(bounds) = PacketBounds::new(&prepared, valid, diagonal) {
-            let tmax = Lanes(valid)
-                .map(|i| prepared[i].box_tmax())
-                .fold(f32::NEG_INFINITY, f32::max);
+            let tmax = farthest_tmax(&prepared, valid);
             counter.boxes_tested(1);
             if !bounds.hits(&root_bounds, tmax) {
                 return;
@@ -220,11 +194,6 @@ impl<const W: usize> WideLayout<W> {
             return;
         }
         let box_rays = prepared.map(|r| BoxRay::new(&r));
-        let farthest_tmax = |prepared: &[PreparedRay; PACKET_SIZE], rays: u32| {
-            Lanes(rays)
-                .map(|i| prepared[i].box_tmax())
-                .fold(f32::NEG_INFINITY, f32::max)
-        };
         let mut stack: TraversalStack<(u32, u32, f32), 64> = TraversalStack::new();
         let mut current = root;
         loop {
