@@ -2,7 +2,7 @@
 
 use rayon::prelude::*;
 
-use crate::geometry::{PreparedRay, Ray, Triangle};
+use crate::geometry::{PreparedRay, Ray, Triangle, TriangleHit};
 use crate::stats::{Counter, NoCount, TraversalStats};
 
 /// The closest intersection of a ray with a mesh.
@@ -41,16 +41,23 @@ pub fn record_closer_hit(
     best: &mut Option<Hit>,
 ) {
     if let Some(h) = triangle.intersect(ray) {
-        let hit = Hit {
-            t: h.t,
-            prim,
-            u: h.u,
-            v: h.v,
-        };
-        if hit.is_closer_than(best) {
-            *best = Some(hit);
-            ray.tmax = h.t;
-        }
+        record_hit(h, prim, ray, best);
+    }
+}
+
+/// Records the hit `h` of triangle `prim` if it is closer than `best` (ties to the smaller id),
+/// shrinking `ray.tmax` to its `t`.
+#[inline]
+pub(crate) fn record_hit(h: TriangleHit, prim: u32, ray: &mut PreparedRay, best: &mut Option<Hit>) {
+    let hit = Hit {
+        t: h.t,
+        prim,
+        u: h.u,
+        v: h.v,
+    };
+    if hit.is_closer_than(best) {
+        *best = Some(hit);
+        ray.tmax = h.t;
     }
 }
 

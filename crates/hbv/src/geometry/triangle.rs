@@ -132,9 +132,16 @@ impl Triangle {
         let bz = s.z * b[kz];
         let cz = s.z * c[kz];
         let mut t = (u * az + v * bz + w * cz) / det;
-        if t.abs() <= Self::NEAR_ORIGIN_ULPS * f32::EPSILON * ma.max(mb).max(mc) * s.z.abs() {
+        let near_origin = Self::NEAR_ORIGIN_ULPS * f32::EPSILON * ma.max(mb).max(mc) * s.z.abs();
+        if t.abs() <= near_origin {
             // The hit is within rounding distance of the origin: whether it lies before or
-            // after `tmin` is decided by the exact plane distance, not by rounding.
+            // after `tmin` is decided by the exact plane distance, not by rounding — unless
+            // `tmin` lies so far beyond that distance that no rounding could reach it (the
+            // exact `t` is within `near_origin` of the computed one, and `plane_distance` is
+            // exact to far less): the usual case of a ray leaving a surface with an offset.
+            if ray.tmin > Self::FAR_BEYOND_ROUNDING * near_origin {
+                return None;
+            }
             t = self.plane_distance(ray);
         }
         Self::accept(ray, t, v / det, w / det)
@@ -216,7 +223,12 @@ impl Triangle {
     /// How close to the origin, in ulps of the vertices' coordinates relative to it, a hit must
     /// be for its `t` to be recomputed exactly. Woop's `t` has an error of a few ulps of those
     /// coordinates (the shear and the depth products); 64 leaves a wide margin.
-    const NEAR_ORIGIN_ULPS: f32 = 64.0;
+    pub(crate) const NEAR_ORIGIN_ULPS: f32 = 64.0;
+
+    /// A `tmin` this many times the near-origin distance lies beyond any rounding of a hit
+    /// found within that distance of the origin: such a hit is rejected without the exact
+    /// plane distance. (A power of two, so that packet kernels compute the same product.)
+    pub(crate) const FAR_BEYOND_ROUNDING: f32 = 16.0;
 
     /// The ray parameter where the ray meets the triangle's plane, `t = Ng · (p0 − o) / Ng · d`
     /// with `Ng = (p1 − p0) × (p2 − p0)`, evaluated in f64 and rounded once to f32.

@@ -1,14 +1,17 @@
 //! Wide nodes: 4 or 8 children per node, their boxes tested together with SIMD.
 
 mod packet;
+mod triangle_packet;
+
+pub(super) use triangle_packet::TrianglePacket;
 
 use super::binarize::binarize;
 use super::stack::TraversalStack;
-use super::wide_kernels::{BoxRay, LaneBoxes, Lanes, TrianglePacket};
+use super::wide_kernels::{BoxRay, LaneBoxes, Lanes};
 use crate::bvh::tree::{BuildTree, NodeContent, NodeId};
 use crate::geometry::{Aabb, PreparedRay, Ray};
 use crate::mesh::TriangleMesh;
-use crate::query::{record_closer_hit, Hit, TraversalKernel};
+use crate::query::{record_closer_hit, record_hit, Hit, TraversalKernel};
 use crate::stats::{Counter, NoCount};
 
 /// Bit 31 of a child reference: the child is a leaf.
@@ -397,7 +400,11 @@ impl<const W: usize> WideLayout<W> {
         self.traverse::<C, K, true>(&mut prepared, counter, |first, count, ray, counter| {
             for packet in &self.packets[first..first + count] {
                 counter.triangles_tested(4);
-                for lane in packet.candidate_lanes(ray) {
+                let test = packet.test(ray);
+                for lane in Lanes(test.hit) {
+                    record_hit(test.hit(lane), packet.ids[lane], ray, &mut best);
+                }
+                for lane in Lanes(test.undecided) {
                     record_closer_hit(&packet.triangle(lane), packet.ids[lane], ray, &mut best);
                 }
             }
@@ -415,8 +422,11 @@ impl<const W: usize> WideLayout<W> {
                 .iter()
                 .find_map(|packet| {
                     counter.triangles_tested(4);
-                    packet
-                        .candidate_lanes(ray)
+                    let test = packet.test(ray);
+                    if test.hit != 0 {
+                        return Some(packet.ids[test.hit.trailing_zeros() as usize]);
+                    }
+                    Lanes(test.undecided)
                         .find(|&lane| packet.triangle(lane).intersect(ray).is_some())
                         .map(|lane| packet.ids[lane])
                 });

@@ -2,14 +2,15 @@
 //! ray's full interval reaches and keeps every triangle hit.
 
 use super::wide::WideLayout;
+use super::wide_kernels::Lanes;
 use crate::all_hits::{sort_hits, AllHits};
 use crate::geometry::Ray;
 use crate::query::Hit;
 
 impl<const W: usize> AllHits for WideLayout<W> {
     /// The any-hit traversal order (no sorting of children: every reached leaf is visited
-    /// anyway) with the interval never shrunk; the SIMD packet test filters, the scalar
-    /// watertight test decides, exactly as in the closest-hit query. The spare lanes of a
+    /// anyway) with the interval never shrunk; the SIMD packet test decides what it can and the
+    /// scalar watertight test the rest, exactly as in the closest-hit query. The spare lanes of a
     /// packet repeat its last triangle, so a lane with the previous lane's id is skipped.
     fn all_hits(&self, ray: &Ray, hits: &mut Vec<Hit>) {
         hits.clear();
@@ -18,11 +19,17 @@ impl<const W: usize> AllHits for WideLayout<W> {
         }
         self.for_each_leaf_reached(ray, |packets, prepared| {
             for packet in packets {
-                for lane in packet.candidate_lanes(prepared) {
-                    if lane > 0 && packet.ids[lane] == packet.ids[lane - 1] {
+                let test = packet.test(prepared);
+                for lane in Lanes(test.hit | test.undecided) {
+                    if packet.repeats_previous(lane) {
                         continue;
                     }
-                    if let Some(h) = packet.triangle(lane).intersect(prepared) {
+                    let hit = if test.hit >> lane & 1 == 1 {
+                        Some(test.hit(lane))
+                    } else {
+                        packet.triangle(lane).intersect(prepared)
+                    };
+                    if let Some(h) = hit {
                         hits.push(Hit {
                             t: h.t,
                             prim: packet.ids[lane],

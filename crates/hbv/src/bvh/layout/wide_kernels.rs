@@ -1,5 +1,5 @@
-//! The SIMD kernels of [`WideLayout`](super::WideLayout): several boxes, and several triangles,
-//! against one ray at once. Each kernel has a scalar twin that defines its answer; the SIMD
+//! The SIMD box kernels of [`WideLayout`](super::WideLayout): several boxes against one ray at
+//! once (the triangle kernels are in `wide/triangle_packet.rs`). Each kernel has a scalar twin that defines its answer; the SIMD
 //! versions compute the same IEEE operations in the same order, so they return the same bits
 //! (tested below), and every layout answers exactly like the scalar reference.
 
@@ -7,7 +7,7 @@
 // lane counter; iterators over one of them would hide that symmetry.
 #![allow(clippy::needless_range_loop)]
 
-use crate::geometry::{PreparedRay, Triangle};
+use crate::geometry::PreparedRay;
 
 /// Child boxes of a wide node, structure of arrays: `planes[side][axis][lane]`, side 0 the
 /// minimum corner and side 1 the maximum. Empty lanes hold the empty box (never hit).
@@ -176,152 +176,6 @@ impl Iterator for Lanes {
     }
 }
 
-/// Four triangles, structure of arrays: `vertices[vertex][axis][lane]`, with their face ids.
-/// A leaf whose count is not a multiple of 4 repeats its last triangle in the spare lanes.
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(16))]
-pub(crate) struct TrianglePacket {
-    pub vertices: [[[f32; 4]; 3]; 3],
-    pub ids: [u32; 4],
-}
-
-impl TrianglePacket {
-    /// Packs up to four triangles; spare lanes repeat the last one.
-    pub fn new(triangles: &[(u32, Triangle)]) -> Self {
-        assert!((1..=4).contains(&triangles.len()));
-        let mut packet = Self {
-            vertices: [[[0.0; 4]; 3]; 3],
-            ids: [0; 4],
-        };
-        for lane in 0..4 {
-            let (id, t) = triangles[lane.min(triangles.len() - 1)];
-            for (v, p) in [t.p0, t.p1, t.p2].iter().enumerate() {
-                for axis in 0..3 {
-                    packet.vertices[v][axis][lane] = p[axis];
-                }
-            }
-            packet.ids[lane] = id;
-        }
-        packet
-    }
-
-    pub fn triangle(&self, lane: usize) -> Triangle {
-        let v = |k: usize| {
-            glam::Vec3::new(
-                self.vertices[k][0][lane],
-                self.vertices[k][1][lane],
-                self.vertices[k][2][lane],
-            )
-        };
-        Triangle::new(v(0), v(1), v(2))
-    }
-
-    /// The lanes that may be hit (bit `i` for lane `i`): all but those whose f32 edge functions
-    /// are certainly of opposite signs (beyond their error bounds, as [`Triangle::intersect`]
-    /// computes them, with the same operations). Every lane that test accepts is here; the
-    /// caller runs it on these lanes for the exact answer.
-    #[inline]
-    pub fn candidates(&self, ray: &PreparedRay) -> u32 {
-        #[cfg(target_arch = "x86_64")]
-        {
-            self.candidates_sse(ray)
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            self.candidates_scalar(ray)
-        }
-    }
-
-    /// The lanes of [`TrianglePacket::candidates`], lowest first.
-    #[inline]
-    pub fn candidate_lanes(&self, ray: &PreparedRay) -> Lanes {
-        Lanes(self.candidates(ray))
-    }
-
-    /// The scalar definition of [`TrianglePacket::candidates`].
-    #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
-    pub fn candidates_scalar(&self, ray: &PreparedRay) -> u32 {
-        use crate::geometry::edge_error;
-        let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
-        let o = ray.origin;
-        let mut mask = 0;
-        for lane in 0..4 {
-            // (sheared x, sheared y, largest |component| of vertex - origin)
-            let sheared = |v: usize| {
-                let x = self.vertices[v][kx][lane] - o[kx];
-                let y = self.vertices[v][ky][lane] - o[ky];
-                let z = self.vertices[v][kz][lane] - o[kz];
-                let m = x.abs().max(y.abs()).max(z.abs());
-                (x - ray.shear.x * z, y - ray.shear.y * z, m)
-            };
-            let ((ax, ay, ma), (bx, by, mb), (cx, cy, mc)) = (sheared(0), sheared(1), sheared(2));
-            let u = cx * by - cy * bx;
-            let v = ax * cy - ay * cx;
-            let w = bx * ay - by * ax;
-            let eu = edge_error(mb.max(mc), bx, by, cx, cy);
-            let ev = edge_error(mc.max(ma), cx, cy, ax, ay);
-            let ew = edge_error(ma.max(mb), ax, ay, bx, by);
-            let positive = u > eu || v > ev || w > ew;
-            let negative = u < -eu || v < -ev || w < -ew;
-            mask |= u32::from(!(positive && negative)) << lane;
-        }
-        mask
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[inline]
-    fn candidates_sse(&self, ray: &PreparedRay) -> u32 {
-        use crate::geometry::EDGE_ERROR;
-        use std::arch::x86_64::*;
-        let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
-        // SAFETY: SSE2 is part of the x86_64 baseline; each load reads one `[f32; 4]` array of
-        // this 16-byte aligned packet.
-        unsafe {
-            let ox = _mm_set1_ps(ray.origin[kx]);
-            let oy = _mm_set1_ps(ray.origin[ky]);
-            let oz = _mm_set1_ps(ray.origin[kz]);
-            let sx = _mm_set1_ps(ray.shear.x);
-            let sy = _mm_set1_ps(ray.shear.y);
-            let sign_bit = _mm_set1_ps(-0.0);
-            let abs = |x: __m128| _mm_andnot_ps(sign_bit, x);
-            let sheared = |v: usize| {
-                let x = _mm_sub_ps(_mm_load_ps(self.vertices[v][kx].as_ptr()), ox);
-                let y = _mm_sub_ps(_mm_load_ps(self.vertices[v][ky].as_ptr()), oy);
-                let z = _mm_sub_ps(_mm_load_ps(self.vertices[v][kz].as_ptr()), oz);
-                let m = _mm_max_ps(_mm_max_ps(abs(x), abs(y)), abs(z));
-                (
-                    _mm_sub_ps(x, _mm_mul_ps(sx, z)),
-                    _mm_sub_ps(y, _mm_mul_ps(sy, z)),
-                    m,
-                )
-            };
-            let ((ax, ay, ma), (bx, by, mb), (cx, cy, mc)) = (sheared(0), sheared(1), sheared(2));
-            let u = _mm_sub_ps(_mm_mul_ps(cx, by), _mm_mul_ps(cy, bx));
-            let v = _mm_sub_ps(_mm_mul_ps(ax, cy), _mm_mul_ps(ay, cx));
-            let w = _mm_sub_ps(_mm_mul_ps(bx, ay), _mm_mul_ps(by, ax));
-            let k = _mm_set1_ps(EDGE_ERROR);
-            let bound = |m: __m128, px: __m128, py: __m128, qx: __m128, qy: __m128| {
-                let sum = _mm_add_ps(_mm_add_ps(_mm_add_ps(abs(px), abs(py)), abs(qx)), abs(qy));
-                _mm_mul_ps(_mm_mul_ps(k, m), sum)
-            };
-            let eu = bound(_mm_max_ps(mb, mc), bx, by, cx, cy);
-            let ev = bound(_mm_max_ps(mc, ma), cx, cy, ax, ay);
-            let ew = bound(_mm_max_ps(ma, mb), ax, ay, bx, by);
-            let neg = |e: __m128| _mm_xor_ps(e, sign_bit);
-            let positive = _mm_or_ps(
-                _mm_or_ps(_mm_cmpgt_ps(u, eu), _mm_cmpgt_ps(v, ev)),
-                _mm_cmpgt_ps(w, ew),
-            );
-            let negative = _mm_or_ps(
-                _mm_or_ps(_mm_cmplt_ps(u, neg(eu)), _mm_cmplt_ps(v, neg(ev))),
-                _mm_cmplt_ps(w, neg(ew)),
-            );
-            let rejected = _mm_movemask_ps(_mm_and_ps(positive, negative)) as u32;
-            !rejected & 0xf
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -406,21 +260,5 @@ mod tests {
             }
         }
 
-        #[test]
-        fn triangle_candidates_cover_every_hit(ray in ray_strategy(), pts in prop::collection::vec((-2.0f32..2.0, -2.0f32..2.0, prop_oneof![Just(0.0f32), -2.0f32..2.0]), 12)) {
-            let tris: Vec<(u32, Triangle)> = pts.chunks(3).enumerate().map(|(i, p)| {
-                let v = |k: usize| Vec3::new(p[k].0, p[k].1, p[k].2);
-                (i as u32, Triangle::new(v(0), v(1), v(2)))
-            }).collect();
-            let packet = TrianglePacket::new(&tris);
-            let prepared = PreparedRay::new(&ray);
-            let scalar = packet.candidates_scalar(&prepared);
-            prop_assert_eq!(packet.candidates(&prepared), scalar);
-            for (lane, (_, t)) in tris.iter().enumerate() {
-                if t.intersect(&prepared).is_some() {
-                    prop_assert!(scalar >> lane & 1 == 1, "lane {} hit but not a candidate", lane);
-                }
-            }
-        }
     }
 }

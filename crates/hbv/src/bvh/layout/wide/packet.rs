@@ -20,7 +20,7 @@ use super::{BoxKernel, DefaultBoxes, WideLayout, LEAF, LEAF_COUNT_SHIFT, LEAF_FI
 use crate::bvh::layout::stack::TraversalStack;
 use crate::bvh::layout::wide_kernels::{BoxRay, Lanes};
 use crate::geometry::{Aabb, PreparedRay, Ray};
-use crate::query::{record_closer_hit, Hit, PACKET_SIZE};
+use crate::query::{record_closer_hit, record_hit, Hit, PACKET_SIZE};
 use crate::stats::Counter;
 
 /// Directions of one packet must lie within this cosine of each other (about 8°).
@@ -205,7 +205,11 @@ impl<const W: usize> WideLayout<W> {
                     let ray = &mut prepared[i];
                     for packet in &self.packets[first..first + count] {
                         counter.triangles_tested(4);
-                        for lane in packet.candidate_lanes(ray) {
+                        let test = packet.test(ray);
+                        for lane in Lanes(test.hit) {
+                            record_hit(test.hit(lane), packet.ids[lane], ray, &mut hits[i]);
+                        }
+                        for lane in Lanes(test.undecided) {
                             let triangle = packet.triangle(lane);
                             record_closer_hit(&triangle, packet.ids[lane], ray, &mut hits[i]);
                         }

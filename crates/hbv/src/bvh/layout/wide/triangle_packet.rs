@@ -1,0 +1,368 @@
+//! Four triangles in structure-of-arrays form, tested against one ray at once: the leaf storage of
+//! [`WideLayout`](super::WideLayout).
+//!
+//! The SIMD test is [`Triangle::intersect`] lane by lane, with the same IEEE operations in the same
+//! order, so every lane it decides is decided with the scalar test's bits: the same hit or miss,
+//! the same `t`, `u`, `v`. What it cannot decide in f32 — a ray within rounding distance of an
+//! edge or a vertex, a grazing ray, a hit next to the origin of a ray that may start on the
+//! surface — it leaves to the scalar test, which takes the exact (f64) path there.
+
+// The scalar twin indexes vertices, axes and lanes with counters; iterators would hide that.
+#![allow(clippy::needless_range_loop)]
+
+use crate::geometry::{edge_error, PreparedRay, Triangle, TriangleHit, EDGE_ERROR};
+
+/// Four triangles, structure of arrays: `vertices[vertex][axis][lane]`, with their face ids.
+/// A leaf whose count is not a multiple of 4 repeats its last triangle in the spare lanes.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(16))]
+pub(crate) struct TrianglePacket {
+    pub vertices: [[[f32; 4]; 3]; 3],
+    pub ids: [u32; 4],
+}
+
+/// What [`TrianglePacket::test`] decided, lane by lane.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PacketTest {
+    /// Lanes certainly hit within `[tmin, tmax]`; [`PacketTest::hit`] gives each hit exactly as
+    /// [`Triangle::intersect`] does.
+    pub hit: u32,
+    /// Lanes the f32 test cannot decide: ask [`Triangle::intersect`]. Every other lane is missed.
+    pub undecided: u32,
+    t: [f32; 4],
+    /// The edge functions weighting `p1` and `p2`, and their sum (the determinant).
+    v: [f32; 4],
+    w: [f32; 4],
+    det: [f32; 4],
+}
+
+impl PacketTest {
+    /// The hit of lane `lane`, one of [`PacketTest::hit`]: `u = V / det`, `v = W / det` as in
+    /// [`Triangle::intersect`] (divided here, for the lanes that are used, rather than for all).
+    #[inline]
+    pub fn hit(&self, lane: usize) -> TriangleHit {
+        TriangleHit {
+            t: self.t[lane],
+            u: self.v[lane] / self.det[lane],
+            v: self.w[lane] / self.det[lane],
+        }
+    }
+}
+
+impl TrianglePacket {
+    /// Packs up to four triangles; spare lanes repeat the last one.
+    pub fn new(triangles: &[(u32, Triangle)]) -> Self {
+        assert!((1..=4).contains(&triangles.len()));
+        let mut packet = Self {
+            vertices: [[[0.0; 4]; 3]; 3],
+            ids: [0; 4],
+        };
+        for lane in 0..4 {
+            let (id, t) = triangles[lane.min(triangles.len() - 1)];
+            for (v, p) in [t.p0, t.p1, t.p2].iter().enumerate() {
+                for axis in 0..3 {
+                    packet.vertices[v][axis][lane] = p[axis];
+                }
+            }
+            packet.ids[lane] = id;
+        }
+        packet
+    }
+
+    pub fn triangle(&self, lane: usize) -> Triangle {
+        let v = |k: usize| {
+            glam::Vec3::new(
+                self.vertices[k][0][lane],
+                self.vertices[k][1][lane],
+                self.vertices[k][2][lane],
+            )
+        };
+        Triangle::new(v(0), v(1), v(2))
+    }
+
+    /// Whether lane `lane` repeats the previous lane's triangle (the padding of a short leaf).
+    #[inline]
+    pub fn repeats_previous(&self, lane: usize) -> bool {
+        lane > 0 && self.ids[lane] == self.ids[lane - 1]
+    }
+
+    /// Tests the four triangles against the ray: [`Triangle::intersect`]'s f32 path, four lanes
+    /// at once (SSE on x86_64, the scalar twin elsewhere).
+    ///
+    /// Per lane, with the sheared vertex coordinates `A, B, C` and edge functions `U, V, W` and
+    /// their error bounds `eU, eV, eW` of [`Triangle::intersect`]:
+    ///
+    /// ```text
+    ///   miss       if some edge function is certainly positive and another certainly negative
+    ///   undecided  if some |E| ≤ eE                                   (near an edge: f64 decides)
+    ///   t = (U Az + V Bz + W Cz) / det,   det = U + V + W
+    ///   undecided  if |t| ≤ n and tmin ≤ 16 n,   n = 64 ε max|P − o| |Sz|    (next to the origin)
+    ///   miss       if |t| ≤ n and tmin > 16 n
+    ///   hit        if tmin ≤ t ≤ tmax and t is finite, else miss
+    /// ```
+    #[inline]
+    pub fn test(&self, ray: &PreparedRay) -> PacketTest {
+        #[cfg(target_arch = "x86_64")]
+        {
+            self.test_sse(ray)
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            self.test_scalar(ray)
+        }
+    }
+
+    /// The scalar definition of [`TrianglePacket::test`].
+    #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+    pub fn test_scalar(&self, ray: &PreparedRay) -> PacketTest {
+        let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
+        let o = ray.origin;
+        let s = ray.shear;
+        let mut out = PacketTest {
+            hit: 0,
+            undecided: 0,
+            t: [0.0; 4],
+            v: [0.0; 4],
+            w: [0.0; 4],
+            det: [0.0; 4],
+        };
+        for lane in 0..4 {
+            // (sheared x, sheared y, depth coordinate, largest |component| of vertex - origin)
+            let sheared = |v: usize| {
+                let x = self.vertices[v][kx][lane] - o[kx];
+                let y = self.vertices[v][ky][lane] - o[ky];
+                let z = self.vertices[v][kz][lane] - o[kz];
+                let m = x.abs().max(y.abs()).max(z.abs());
+                (x - s.x * z, y - s.y * z, z, m)
+            };
+            let ((ax, ay, az, ma), (bx, by, bz, mb), (cx, cy, cz, mc)) =
+                (sheared(0), sheared(1), sheared(2));
+            let u = cx * by - cy * bx;
+            let v = ax * cy - ay * cx;
+            let w = bx * ay - by * ax;
+            let eu = edge_error(mb.max(mc), bx, by, cx, cy);
+            let ev = edge_error(mc.max(ma), cx, cy, ax, ay);
+            let ew = edge_error(ma.max(mb), ax, ay, bx, by);
+            let positive = u > eu || v > ev || w > ew;
+            let negative = u < -eu || v < -ev || w < -ew;
+            if positive && negative {
+                continue;
+            }
+            let certain = u.abs() > eu && v.abs() > ev && w.abs() > ew;
+            if !certain {
+                out.undecided |= 1 << lane;
+                continue;
+            }
+            let det = u + v + w;
+            let t = (u * (s.z * az) + v * (s.z * bz) + w * (s.z * cz)) / det;
+            let near_origin =
+                Triangle::NEAR_ORIGIN_ULPS * f32::EPSILON * ma.max(mb).max(mc) * s.z.abs();
+            if t.abs() <= near_origin {
+                if !(ray.tmin > Triangle::FAR_BEYOND_ROUNDING * near_origin) {
+                    out.undecided |= 1 << lane;
+                }
+                continue;
+            }
+            if t >= ray.tmin && t <= ray.tmax && t.is_finite() {
+                out.hit |= 1 << lane;
+                out.t[lane] = t;
+                out.v[lane] = v;
+                out.w[lane] = w;
+                out.det[lane] = det;
+            }
+        }
+        out
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[inline]
+    fn test_sse(&self, ray: &PreparedRay) -> PacketTest {
+        use std::arch::x86_64::*;
+        let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
+        // SAFETY: SSE2 is part of the x86_64 baseline; each load reads one `[f32; 4]` array of
+        // this 16-byte aligned packet, and each store writes one `[f32; 4]`.
+        unsafe {
+            let ox = _mm_set1_ps(ray.origin[kx]);
+            let oy = _mm_set1_ps(ray.origin[ky]);
+            let oz = _mm_set1_ps(ray.origin[kz]);
+            let sx = _mm_set1_ps(ray.shear.x);
+            let sy = _mm_set1_ps(ray.shear.y);
+            let sz = _mm_set1_ps(ray.shear.z);
+            let sign_bit = _mm_set1_ps(-0.0);
+            let abs = |x: __m128| _mm_andnot_ps(sign_bit, x);
+            let sheared = |v: usize| {
+                let x = _mm_sub_ps(_mm_load_ps(self.vertices[v][kx].as_ptr()), ox);
+                let y = _mm_sub_ps(_mm_load_ps(self.vertices[v][ky].as_ptr()), oy);
+                let z = _mm_sub_ps(_mm_load_ps(self.vertices[v][kz].as_ptr()), oz);
+                let m = _mm_max_ps(_mm_max_ps(abs(x), abs(y)), abs(z));
+                (
+                    _mm_sub_ps(x, _mm_mul_ps(sx, z)),
+                    _mm_sub_ps(y, _mm_mul_ps(sy, z)),
+                    z,
+                    m,
+                )
+            };
+            let ((ax, ay, az, ma), (bx, by, bz, mb), (cx, cy, cz, mc)) =
+                (sheared(0), sheared(1), sheared(2));
+            let u = _mm_sub_ps(_mm_mul_ps(cx, by), _mm_mul_ps(cy, bx));
+            let v = _mm_sub_ps(_mm_mul_ps(ax, cy), _mm_mul_ps(ay, cx));
+            let w = _mm_sub_ps(_mm_mul_ps(bx, ay), _mm_mul_ps(by, ax));
+            let k = _mm_set1_ps(EDGE_ERROR);
+            let bound = |m: __m128, px: __m128, py: __m128, qx: __m128, qy: __m128| {
+                let sum = _mm_add_ps(_mm_add_ps(_mm_add_ps(abs(px), abs(py)), abs(qx)), abs(qy));
+                _mm_mul_ps(_mm_mul_ps(k, m), sum)
+            };
+            let eu = bound(_mm_max_ps(mb, mc), bx, by, cx, cy);
+            let ev = bound(_mm_max_ps(mc, ma), cx, cy, ax, ay);
+            let ew = bound(_mm_max_ps(ma, mb), ax, ay, bx, by);
+            let neg = |e: __m128| _mm_xor_ps(e, sign_bit);
+            let positive = _mm_or_ps(
+                _mm_or_ps(_mm_cmpgt_ps(u, eu), _mm_cmpgt_ps(v, ev)),
+                _mm_cmpgt_ps(w, ew),
+            );
+            let negative = _mm_or_ps(
+                _mm_or_ps(_mm_cmplt_ps(u, neg(eu)), _mm_cmplt_ps(v, neg(ev))),
+                _mm_cmplt_ps(w, neg(ew)),
+            );
+            let rejected = _mm_movemask_ps(_mm_and_ps(positive, negative)) as u32;
+            let certain = _mm_and_ps(
+                _mm_and_ps(_mm_cmpgt_ps(abs(u), eu), _mm_cmpgt_ps(abs(v), ev)),
+                _mm_cmpgt_ps(abs(w), ew),
+            );
+            let certain = _mm_movemask_ps(certain) as u32;
+            let uncertain = !rejected & !certain & 0xf;
+            let open = !rejected & certain & 0xf;
+            if open == 0 {
+                return PacketTest {
+                    hit: 0,
+                    undecided: uncertain,
+                    t: [0.0; 4],
+                    v: [0.0; 4],
+                    w: [0.0; 4],
+                    det: [0.0; 4],
+                };
+            }
+
+            let det = _mm_add_ps(_mm_add_ps(u, v), w);
+            let depth = _mm_add_ps(
+                _mm_add_ps(
+                    _mm_mul_ps(u, _mm_mul_ps(sz, az)),
+                    _mm_mul_ps(v, _mm_mul_ps(sz, bz)),
+                ),
+                _mm_mul_ps(w, _mm_mul_ps(sz, cz)),
+            );
+            let t = _mm_div_ps(depth, det);
+            let near_origin = _mm_mul_ps(
+                _mm_mul_ps(
+                    _mm_set1_ps(Triangle::NEAR_ORIGIN_ULPS * f32::EPSILON),
+                    _mm_max_ps(_mm_max_ps(ma, mb), mc),
+                ),
+                abs(sz),
+            );
+            let near = _mm_movemask_ps(_mm_cmple_ps(abs(t), near_origin)) as u32;
+            let tmin = _mm_set1_ps(ray.tmin);
+            let beyond = _mm_movemask_ps(_mm_cmpgt_ps(
+                tmin,
+                _mm_mul_ps(_mm_set1_ps(Triangle::FAR_BEYOND_ROUNDING), near_origin),
+            )) as u32;
+            let in_range = _mm_and_ps(
+                _mm_and_ps(
+                    _mm_cmpge_ps(t, tmin),
+                    _mm_cmple_ps(t, _mm_set1_ps(ray.tmax)),
+                ),
+                _mm_cmplt_ps(abs(t), _mm_set1_ps(f32::INFINITY)),
+            );
+            let in_range = _mm_movemask_ps(in_range) as u32;
+            let mut out = PacketTest {
+                hit: open & !near & in_range,
+                undecided: uncertain | (open & near & !beyond),
+                t: [0.0; 4],
+                v: [0.0; 4],
+                w: [0.0; 4],
+                det: [0.0; 4],
+            };
+            _mm_storeu_ps(out.t.as_mut_ptr(), t);
+            _mm_storeu_ps(out.v.as_mut_ptr(), v);
+            _mm_storeu_ps(out.w.as_mut_ptr(), w);
+            _mm_storeu_ps(out.det.as_mut_ptr(), det);
+            out
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Ray;
+    use glam::Vec3;
+    use proptest::prelude::*;
+
+    fn ray_strategy() -> impl Strategy<Value = Ray> {
+        let c = || prop_oneof![Just(0.0f32), Just(-0.0), Just(1.0), Just(0.5), -2.0f32..2.0];
+        (
+            (c(), c(), c()),
+            (c(), c(), c()),
+            prop_oneof![Just(0.0f32), Just(1e-3), 0.0f32..1.0],
+            prop_oneof![Just(f32::INFINITY), 0.5f32..4.0],
+        )
+            .prop_filter("valid", |((_, _, _), (x, y, z), _, _)| {
+                Vec3::new(*x, *y, *z) != Vec3::ZERO
+            })
+            .prop_map(|((ox, oy, oz), (dx, dy, dz), tmin, tmax)| {
+                Ray::new(Vec3::new(ox, oy, oz), Vec3::new(dx, dy, dz)).with_interval(tmin, tmax)
+            })
+    }
+
+    /// Each lane's verdict against [`Triangle::intersect`], and the SIMD test against its twin.
+    fn check(packet: &TrianglePacket, ray: &Ray) -> Result<(), TestCaseError> {
+        let prepared = PreparedRay::new(ray);
+        let scalar = packet.test_scalar(&prepared);
+        let simd = packet.test(&prepared);
+        prop_assert_eq!(simd.hit, scalar.hit);
+        prop_assert_eq!(simd.undecided, scalar.undecided);
+        for lane in 0..4 {
+            let exact = packet.triangle(lane).intersect(&prepared);
+            if scalar.hit >> lane & 1 == 1 {
+                prop_assert_eq!(Some(scalar.hit(lane)), exact, "lane {}", lane);
+                prop_assert_eq!(simd.hit(lane), scalar.hit(lane), "lane {}", lane);
+            } else if scalar.undecided >> lane & 1 == 0 {
+                prop_assert_eq!(exact, None, "lane {} decided miss", lane);
+            }
+        }
+        Ok(())
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(3000))]
+
+        #[test]
+        fn packet_test_decides_as_the_scalar_test(ray in ray_strategy(), pts in prop::collection::vec((-2.0f32..2.0, -2.0f32..2.0, prop_oneof![Just(0.0f32), -2.0f32..2.0]), 12)) {
+            let tris: Vec<(u32, Triangle)> = pts.chunks(3).enumerate().map(|(i, p)| {
+                let v = |k: usize| Vec3::new(p[k].0, p[k].1, p[k].2);
+                (i as u32, Triangle::new(v(0), v(1), v(2)))
+            }).collect();
+            check(&TrianglePacket::new(&tris), &ray)?;
+        }
+
+        /// Rays leaving a point on one of the triangles, with and without an offset `tmin`:
+        /// the near-origin rule.
+        #[test]
+        fn packet_test_on_rays_leaving_the_surface(
+            pts in prop::collection::vec((-2.0f32..2.0, -2.0f32..2.0, -2.0f32..2.0), 12),
+            (a, b) in (0.0f32..1.0, 0.0f32..1.0),
+            d in (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0),
+            tmin in prop_oneof![Just(0.0f32), Just(1e-6), Just(1e-4), Just(1e-2)],
+        ) {
+            let tris: Vec<(u32, Triangle)> = pts.chunks(3).enumerate().map(|(i, p)| {
+                let v = |k: usize| Vec3::new(p[k].0, p[k].1, p[k].2);
+                (i as u32, Triangle::new(v(0), v(1), v(2)))
+            }).collect();
+            let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
+            let t = tris[1].1;
+            let origin = t.p0 + a * (t.p1 - t.p0) + b * (t.p2 - t.p0);
+            let direction = Vec3::new(d.0, d.1, d.2);
+            prop_assume!(direction.abs().max_element() > 1e-3);
+            check(&TrianglePacket::new(&tris), &Ray::new(origin, direction).with_interval(tmin, f32::INFINITY))?;
+        }
+    }
+}
