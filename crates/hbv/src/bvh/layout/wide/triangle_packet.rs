@@ -158,7 +158,8 @@ impl TrianglePacket {
             let near_origin =
                 Triangle::NEAR_ORIGIN_ULPS * f32::EPSILON * ma.max(mb).max(mc) * s.z.abs();
             if t.abs() <= near_origin {
-                if !(ray.tmin > Triangle::FAR_BEYOND_ROUNDING * near_origin) {
+                let beyond = ray.tmin > Triangle::FAR_BEYOND_ROUNDING * near_origin;
+                if !beyond {
                     out.undecided |= 1 << lane;
                 }
                 continue;
