@@ -197,8 +197,27 @@ impl<const W: usize> WideLayout<W> {
                         current = children[first];
                         continue;
                     }
-                    // Push the hit children farthest first, so the nearest is visited next:
-                    // insertion sort by decreasing entry distance (at most 8 entries).
+                    let rest = hits.0;
+                    if rest == 0 {
+                        // One child hit: go straight there.
+                        current = children[first];
+                        continue;
+                    }
+                    let second = rest.trailing_zeros() as usize;
+                    if rest & (rest - 1) == 0 {
+                        // Two: visit the nearer, postpone the farther.
+                        let (near, far) = if entry[second] < entry[first] {
+                            (second, first)
+                        } else {
+                            (first, second)
+                        };
+                        self.prefetch(children[far]);
+                        stack.push((children[far], entry[far]));
+                        current = children[near];
+                        continue;
+                    }
+                    // Three or more: push the hit children farthest first, so the nearest is
+                    // visited next (insertion sort by decreasing entry distance, at most 8).
                     let mut order = [(0u32, 0.0f32); W];
                     let mut n = 0;
                     for lane in Lanes(mask) {
