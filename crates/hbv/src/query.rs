@@ -170,6 +170,31 @@ pub trait TraversalKernel: Send + Sync {
     fn any_hit_prim<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
         self.closest_hit(ray, counter).map(|h| h.prim)
     }
+
+    /// Closest hits of a batch of independent rays into `hits` (same length); rays may be
+    /// invalid (they miss). The answers are [`TraversalKernel::closest_hit`]'s; kernels that can
+    /// trace several rays at once faster (interleaved, to hide memory latency) override it.
+    fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+            *hit = if ray.is_valid() {
+                self.closest_hit(ray, &mut NoCount)
+            } else {
+                None
+            };
+        }
+    }
+
+    /// Any-hit answers of a batch of independent rays into `occluders` (same length): a blocking
+    /// triangle, or `None`. Rays may be invalid (they miss). As [`TraversalKernel::closest_hits`].
+    fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
+        for (ray, occluder) in rays.iter().zip(occluders.iter_mut()) {
+            *occluder = if ray.is_valid() {
+                self.any_hit_prim(ray, &mut NoCount)
+            } else {
+                None
+            };
+        }
+    }
 }
 
 impl<K: TraversalKernel> Accelerator for K {
@@ -197,6 +222,29 @@ impl<K: TraversalKernel> Accelerator for K {
     fn occluded_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> bool {
         stats.rays += 1;
         ray.is_valid() && self.any_hit(ray, stats)
+    }
+
+    fn intersect_batch(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
+        let mut hits = vec![None; rays.len()];
+        rays.par_chunks(BATCH_GRAIN)
+            .zip(hits.par_chunks_mut(BATCH_GRAIN))
+            .for_each(|(rays, hits)| self.closest_hits(rays, hits));
+        hits
+    }
+
+    fn occluded_batch(&self, rays: &[Ray]) -> Vec<bool> {
+        let mut occluded = vec![false; rays.len()];
+        rays.par_chunks(BATCH_GRAIN)
+            .zip(occluded.par_chunks_mut(BATCH_GRAIN))
+            .for_each(|(rays, occluded)| {
+                let mut occluders = [None; BATCH_GRAIN];
+                let occluders = &mut occluders[..rays.len()];
+                self.occluders(rays, occluders);
+                for (o, b) in occluders.iter().zip(occluded.iter_mut()) {
+                    *b = o.is_some();
+                }
+            });
+        occluded
     }
 
     fn intersect_coherent(&self, rays: &[Ray]) -> Vec<Option<Hit>> {

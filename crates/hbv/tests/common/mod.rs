@@ -7,7 +7,7 @@ use hbv::bvh::build::InsertionOrder;
 use hbv::geometry::Ray;
 use hbv::glam::Vec3;
 use hbv::mesh::procedural::torus;
-use hbv::{Accelerator, BruteForce, TriangleMesh};
+use hbv::{Accelerator, BruteForce, Hit, TriangleMesh};
 use proptest::prelude::*;
 
 /// Asserts that `accel` and brute force agree on every ray: closest hits identical (same `t`,
@@ -48,6 +48,12 @@ pub fn assert_agrees(
             ray
         );
     }
+    // The batch queries (interleaved traversal in the wide layouts) answer exactly what single
+    // rays answer.
+    let single: Vec<Option<Hit>> = rays.iter().map(|r| accel.intersect(r)).collect();
+    prop_assert_eq!(accel.intersect_batch(rays), single, "closest hit, batch");
+    let single: Vec<bool> = rays.iter().map(|r| accel.occluded(r)).collect();
+    prop_assert_eq!(accel.occluded_batch(rays), single, "any hit, batch");
     Ok(())
 }
 

@@ -1,6 +1,7 @@
 //! Wide nodes: 4 or 8 children per node, their boxes tested together with SIMD.
 
 mod packet;
+mod stream;
 mod triangle_packet;
 
 pub(super) use triangle_packet::TrianglePacket;
@@ -189,57 +190,13 @@ impl<const W: usize> WideLayout<W> {
                     box_tmin,
                     box_tmax,
                 );
-                let children = &self.nodes[current as usize].children;
-                let mut hits = Lanes(mask);
-                if let Some(first) = hits.next() {
-                    if !NEAREST_FIRST {
-                        // Any hit: every hit child must be searched anyway and the first hit
-                        // found ends the query, so skip the sort.
-                        for lane in hits {
-                            self.prefetch(children[lane]);
-                            stack.push((children[lane], entry[lane]));
-                        }
-                        current = children[first];
-                        continue;
-                    }
-                    let rest = hits.0;
-                    if rest == 0 {
-                        // One child hit: go straight there.
-                        current = children[first];
-                        continue;
-                    }
-                    let second = rest.trailing_zeros() as usize;
-                    if rest & (rest - 1) == 0 {
-                        // Two: visit the nearer, postpone the farther.
-                        let (near, far) = if entry[second] < entry[first] {
-                            (second, first)
-                        } else {
-                            (first, second)
-                        };
-                        self.prefetch(children[far]);
-                        stack.push((children[far], entry[far]));
-                        current = children[near];
-                        continue;
-                    }
-                    // Three or more: push the hit children farthest first, so the nearest is
-                    // visited next (insertion sort by decreasing entry distance, at most 8).
-                    let mut order = [(0u32, 0.0f32); W];
-                    let mut n = 0;
-                    for lane in Lanes(mask) {
-                        let item = (children[lane], entry[lane]);
-                        let mut k = n;
-                        while k > 0 && order[k - 1].1 < item.1 {
-                            order[k] = order[k - 1];
-                            k -= 1;
-                        }
-                        order[k] = item;
-                        n += 1;
-                    }
-                    for &item in &order[..n - 1] {
-                        self.prefetch(item.0);
-                        stack.push(item);
-                    }
-                    current = order[n - 1].0;
+                if let Some(next) = self.descend::<NEAREST_FIRST>(
+                    &self.nodes[current as usize].children,
+                    mask,
+                    &entry,
+                    &mut stack,
+                ) {
+                    current = next;
                     continue;
                 }
             }
@@ -255,6 +212,70 @@ impl<const W: usize> WideLayout<W> {
 }
 
 impl<const W: usize> WideLayout<W> {
+    /// The step from a node to its children: of the children whose boxes the ray meets (`mask`,
+    /// entering at `entry`), returns the one to visit next and pushes the others, with their
+    /// entry distances, onto `stack` (and asks for their memory early); `None` when none is met.
+    ///
+    /// Nearest first (closest hit): the nearest child is visited next and the others are pushed
+    /// farthest first, so that they are popped in order of distance (Wald et al. 2008 order
+    /// wide-node children the same way). Any hit (`NEAREST_FIRST = false`): every met child must
+    /// be searched unless a hit ends the query, so they are taken in lane order, unsorted.
+    #[inline(always)]
+    fn descend<const NEAREST_FIRST: bool>(
+        &self,
+        children: &[u32; W],
+        mask: u32,
+        entry: &[f32; W],
+        stack: &mut TraversalStack<(u32, f32), 64>,
+    ) -> Option<u32> {
+        let mut hits = Lanes(mask);
+        let first = hits.next()?;
+        if !NEAREST_FIRST {
+            for lane in hits {
+                self.prefetch(children[lane]);
+                stack.push((children[lane], entry[lane]));
+            }
+            return Some(children[first]);
+        }
+        let rest = hits.0;
+        if rest == 0 {
+            // One child met: go straight there.
+            return Some(children[first]);
+        }
+        let second = rest.trailing_zeros() as usize;
+        if rest & (rest - 1) == 0 {
+            // Two: visit the nearer, postpone the farther.
+            let (near, far) = if entry[second] < entry[first] {
+                (second, first)
+            } else {
+                (first, second)
+            };
+            self.prefetch(children[far]);
+            stack.push((children[far], entry[far]));
+            return Some(children[near]);
+        }
+        // Three or more: insertion sort by decreasing entry distance (at most 8 entries).
+        let mut order = [(0u32, 0.0f32); W];
+        let mut n = 0;
+        for lane in Lanes(mask) {
+            let item = (children[lane], entry[lane]);
+            let mut k = n;
+            while k > 0 && order[k - 1].1 < item.1 {
+                order[k] = order[k - 1];
+                k -= 1;
+            }
+            order[k] = item;
+            n += 1;
+        }
+        for &item in &order[..n - 1] {
+            self.prefetch(item.0);
+            stack.push(item);
+        }
+        Some(order[n - 1].0)
+    }
+}
+
+impl<const W: usize> WideLayout<W> {
     /// Asks the CPU to start loading the node or leaf that `reference` names, every cache line
     /// of it: postponed children are fetched while the nearer subtree is traversed.
     #[inline(always)]
@@ -262,21 +283,18 @@ impl<const W: usize> WideLayout<W> {
         #[cfg(target_arch = "x86_64")]
         {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let (address, bytes) = if reference & LEAF != 0 {
+            let address = if reference & LEAF != 0 {
                 let first = (reference & LEAF_FIRST_MASK) as usize;
-                let count = ((reference & !LEAF) >> LEAF_COUNT_SHIFT) as usize + 1;
-                let size = std::mem::size_of::<TrianglePacket>();
-                (
-                    self.packets.as_ptr().wrapping_add(first) as *const i8,
-                    size * count.min(2),
-                )
+                self.packets.as_ptr().wrapping_add(first) as *const i8
             } else {
-                let node = self.nodes.as_ptr().wrapping_add(reference as usize);
-                (node as *const i8, std::mem::size_of::<WideNode<W>>())
+                self.nodes.as_ptr().wrapping_add(reference as usize) as *const i8
             };
-            for line in (0..bytes).step_by(64) {
+            // Four lines: a whole 8-wide node (256 bytes), or a 4-wide node and its neighbour,
+            // or a leaf's first packet (160 bytes) and most of its second. A fixed count keeps
+            // this branch-free: it runs at every step of the interleaved traversal.
+            for line in 0..4 {
                 // SAFETY: a prefetch is a hint; it never faults, whatever the address.
-                unsafe { _mm_prefetch::<_MM_HINT_T0>(address.wrapping_add(line)) };
+                unsafe { _mm_prefetch::<_MM_HINT_T0>(address.wrapping_add(64 * line)) };
             }
         }
     }
@@ -422,16 +440,7 @@ impl<const W: usize> WideLayout<W> {
         let mut prepared = PreparedRay::new(ray);
         let mut best = None;
         self.traverse::<C, K, true>(&mut prepared, counter, |first, count, ray, counter| {
-            for packet in &self.packets[first..first + count] {
-                counter.triangles_tested(4);
-                let test = packet.test(ray);
-                for lane in Lanes(test.hit) {
-                    record_hit(test.hit(lane), packet.ids[lane], ray, &mut best);
-                }
-                for lane in Lanes(test.undecided) {
-                    record_closer_hit(&packet.triangle(lane), packet.ids[lane], ray, &mut best);
-                }
-            }
+            self.closest_hit_in_leaf(first, count, ray, &mut best, counter);
             false
         });
         best
@@ -442,21 +451,56 @@ impl<const W: usize> WideLayout<W> {
         let mut prepared = PreparedRay::new(ray);
         let mut found = None;
         self.traverse::<C, K, false>(&mut prepared, counter, |first, count, ray, counter| {
-            found = self.packets[first..first + count]
-                .iter()
-                .find_map(|packet| {
-                    counter.triangles_tested(4);
-                    let test = packet.test(ray);
-                    if test.hit != 0 {
-                        return Some(packet.ids[test.hit.trailing_zeros() as usize]);
-                    }
-                    Lanes(test.undecided)
-                        .find(|&lane| packet.triangle(lane).intersect(ray).is_some())
-                        .map(|lane| packet.ids[lane])
-                });
+            found = self.any_hit_in_leaf(first, count, ray, counter);
             found.is_some()
         });
         found
+    }
+
+    /// Tests the `count` triangle packets from `first` for a hit closer than `best`, shrinking
+    /// `ray.tmax`: the SIMD test decides what it can, the scalar test the undecided lanes.
+    #[inline(always)]
+    fn closest_hit_in_leaf<C: Counter>(
+        &self,
+        first: usize,
+        count: usize,
+        ray: &mut PreparedRay,
+        best: &mut Option<Hit>,
+        counter: &mut C,
+    ) {
+        for packet in &self.packets[first..first + count] {
+            counter.triangles_tested(4);
+            let test = packet.test(ray);
+            for lane in Lanes(test.hit) {
+                record_hit(test.hit(lane), packet.ids[lane], ray, best);
+            }
+            for lane in Lanes(test.undecided) {
+                record_closer_hit(&packet.triangle(lane), packet.ids[lane], ray, best);
+            }
+        }
+    }
+
+    /// The face id of a triangle of the `count` packets from `first` that the ray hits, if any.
+    #[inline(always)]
+    fn any_hit_in_leaf<C: Counter>(
+        &self,
+        first: usize,
+        count: usize,
+        ray: &PreparedRay,
+        counter: &mut C,
+    ) -> Option<u32> {
+        self.packets[first..first + count]
+            .iter()
+            .find_map(|packet| {
+                counter.triangles_tested(4);
+                let test = packet.test(ray);
+                if test.hit != 0 {
+                    return Some(packet.ids[test.hit.trailing_zeros() as usize]);
+                }
+                Lanes(test.undecided)
+                    .find(|&lane| packet.triangle(lane).intersect(ray).is_some())
+                    .map(|lane| packet.ids[lane])
+            })
     }
 
     /// The closest-hit traversal compiled with AVX. Call only when the CPU has AVX.
@@ -546,5 +590,39 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
         counter: &mut C,
     ) {
         self.closest_hit_packet_dispatch(rays, hits, counter)
+    }
+
+    fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        #[cfg(target_arch = "x86_64")]
+        if W == 8 && self.use_avx {
+            // SAFETY: `use_avx` is set only when the CPU reported AVX.
+            return unsafe { self.closest_hits_avx(rays, hits) };
+        }
+        self.closest_hits_with::<DefaultBoxes>(rays, hits)
+    }
+
+    fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
+        #[cfg(target_arch = "x86_64")]
+        if W == 8 && self.use_avx {
+            // SAFETY: `use_avx` is set only when the CPU reported AVX.
+            return unsafe { self.any_hits_avx(rays, occluders) };
+        }
+        self.any_hits_with::<DefaultBoxes>(rays, occluders)
+    }
+}
+
+impl<const W: usize> WideLayout<W> {
+    /// The interleaved closest-hit batch compiled with AVX. Call only when the CPU has AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn closest_hits_avx(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        self.closest_hits_with::<AvxBoxes>(rays, hits)
+    }
+
+    /// The interleaved any-hit batch compiled with AVX. Call only when the CPU has AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn any_hits_avx(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
+        self.any_hits_with::<AvxBoxes>(rays, occluders)
     }
 }
