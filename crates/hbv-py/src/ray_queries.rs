@@ -100,13 +100,23 @@ pub fn closest_hits<'py>(
     );
     py.detach(|| {
         fill_rows(threads, columns, |first, (hit, (t, (prim, (u, v))))| {
-            for k in 0..hit.len() {
-                let found = accel.intersect(&batch.ray(first + k));
-                hit[k] = found.is_some();
-                t[k] = found.map_or(f32::INFINITY, |h| h.t);
-                prim[k] = found.map_or(-1, |h| h.prim as i64);
-                u[k] = found.map_or(0.0, |h| h.u);
-                v[k] = found.map_or(0.0, |h| h.v);
+            // In runs of GRAIN rays: the accelerator traces a run together (the wide layouts
+            // interleave its rays).
+            let mut rays = Vec::with_capacity(GRAIN);
+            let mut found = vec![None; GRAIN];
+            for start in (0..hit.len()).step_by(GRAIN) {
+                let end = (start + GRAIN).min(hit.len());
+                rays.clear();
+                rays.extend((start..end).map(|k| batch.ray(first + k)));
+                let found = &mut found[..end - start];
+                accel.intersect_into(&rays, found);
+                for (k, found) in (start..end).zip(found.iter()) {
+                    hit[k] = found.is_some();
+                    t[k] = found.map_or(f32::INFINITY, |h| h.t);
+                    prim[k] = found.map_or(-1, |h| h.prim as i64);
+                    u[k] = found.map_or(0.0, |h| h.u);
+                    v[k] = found.map_or(0.0, |h| h.v);
+                }
             }
         })
     })?;
@@ -130,8 +140,11 @@ pub fn any_hits<'py>(
     let mut occluded = vec![false; batch.len];
     py.detach(|| {
         fill_rows(threads, &mut occluded[..], |first, out| {
-            for (k, o) in out.iter_mut().enumerate() {
-                *o = accel.occluded(&batch.ray(first + k));
+            let mut rays = Vec::with_capacity(GRAIN);
+            for (start, out) in (0..).step_by(GRAIN).zip(out.chunks_mut(GRAIN)) {
+                rays.clear();
+                rays.extend((0..out.len()).map(|k| batch.ray(first + start + k)));
+                accel.occluded_into(&rays, out);
             }
         })
     })?;

@@ -90,20 +90,41 @@ pub trait Accelerator: Send + Sync {
         self.intersect_counted(ray, stats).map(|h| h.prim)
     }
 
+    /// Closest hits of `rays` into `hits` (same length), on the calling thread: the answers of
+    /// [`Accelerator::intersect`], ray by ray. Structures that trace several independent rays
+    /// at once faster (the wide layouts interleave them, to hide memory latency) override it.
+    fn intersect_into(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        assert_eq!(rays.len(), hits.len(), "one answer per ray");
+        for (ray, hit) in rays.iter().zip(hits) {
+            *hit = self.intersect(ray);
+        }
+    }
+
+    /// Any-hit answers of `rays` into `occluded` (same length), on the calling thread; as
+    /// [`Accelerator::intersect_into`].
+    fn occluded_into(&self, rays: &[Ray], occluded: &mut [bool]) {
+        assert_eq!(rays.len(), occluded.len(), "one answer per ray");
+        for (ray, o) in rays.iter().zip(occluded) {
+            *o = self.occluded(ray);
+        }
+    }
+
     /// Closest hits of many rays, in parallel on the current rayon pool.
     fn intersect_batch(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
-        rays.par_iter()
-            .with_min_len(BATCH_GRAIN)
-            .map(|r| self.intersect(r))
-            .collect()
+        let mut hits = vec![None; rays.len()];
+        rays.par_chunks(BATCH_GRAIN)
+            .zip(hits.par_chunks_mut(BATCH_GRAIN))
+            .for_each(|(rays, hits)| self.intersect_into(rays, hits));
+        hits
     }
 
     /// Any-hit answers for many rays, in parallel on the current rayon pool.
     fn occluded_batch(&self, rays: &[Ray]) -> Vec<bool> {
-        rays.par_iter()
-            .with_min_len(BATCH_GRAIN)
-            .map(|r| self.occluded(r))
-            .collect()
+        let mut occluded = vec![false; rays.len()];
+        rays.par_chunks(BATCH_GRAIN)
+            .zip(occluded.par_chunks_mut(BATCH_GRAIN))
+            .for_each(|(rays, occluded)| self.occluded_into(rays, occluded));
+        occluded
     }
 
     /// Closest hits of rays given in a *coherent* order (neighbours nearly parallel and from
@@ -224,27 +245,24 @@ impl<K: TraversalKernel> Accelerator for K {
         ray.is_valid() && self.any_hit(ray, stats)
     }
 
-    fn intersect_batch(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
-        let mut hits = vec![None; rays.len()];
-        rays.par_chunks(BATCH_GRAIN)
-            .zip(hits.par_chunks_mut(BATCH_GRAIN))
-            .for_each(|(rays, hits)| self.closest_hits(rays, hits));
-        hits
+    fn intersect_into(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        assert_eq!(rays.len(), hits.len(), "one answer per ray");
+        self.closest_hits(rays, hits);
     }
 
-    fn occluded_batch(&self, rays: &[Ray]) -> Vec<bool> {
-        let mut occluded = vec![false; rays.len()];
-        rays.par_chunks(BATCH_GRAIN)
-            .zip(occluded.par_chunks_mut(BATCH_GRAIN))
-            .for_each(|(rays, occluded)| {
-                let mut occluders = [None; BATCH_GRAIN];
-                let occluders = &mut occluders[..rays.len()];
-                self.occluders(rays, occluders);
-                for (o, b) in occluders.iter().zip(occluded.iter_mut()) {
-                    *b = o.is_some();
-                }
-            });
-        occluded
+    fn occluded_into(&self, rays: &[Ray], occluded: &mut [bool]) {
+        assert_eq!(rays.len(), occluded.len(), "one answer per ray");
+        let mut occluders = [None; BATCH_GRAIN];
+        for (rays, occluded) in rays
+            .chunks(BATCH_GRAIN)
+            .zip(occluded.chunks_mut(BATCH_GRAIN))
+        {
+            let occluders = &mut occluders[..rays.len()];
+            self.occluders(rays, occluders);
+            for (o, b) in occluders.iter().zip(occluded) {
+                *b = o.is_some();
+            }
+        }
     }
 
     fn intersect_coherent(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
