@@ -29,8 +29,8 @@ pub struct TraceArgs {
     /// Any-hit query: write `occluded` instead of closest hits.
     #[arg(long)]
     pub occluded: bool,
-    /// The rays are coherent (camera rays in pixel order): trace closest hits in packets of
-    /// consecutive rays. Same answers, faster on such rays, slower on scattered ones.
+    /// Trace closest hits in packets of 8 consecutive rays (for camera rays in pixel order). Same
+    /// answers; measured slower than the default (interleaved single rays), kept for study.
     #[arg(long, conflicts_with = "occluded")]
     pub coherent: bool,
     /// Worker threads; 0 uses every core.
