@@ -118,6 +118,8 @@ fn empty_and_all_degenerate_meshes_never_hit() {
         for (name, accel) in layouts(&mesh, InsertionOrder::default(), 1) {
             assert_eq!(accel.intersect(&ray), None, "{name}");
             assert!(!accel.occluded(&ray), "{name}");
+            assert_eq!(accel.intersect_batch(&[ray; 40]), vec![None; 40], "{name}");
+            assert_eq!(accel.occluded_batch(&[ray; 40]), vec![false; 40], "{name}");
         }
     }
 }
@@ -143,4 +145,46 @@ fn wide_layouts_take_leaves_larger_than_theirs() {
     assert_agrees(&mesh, &wide4, &rays).unwrap();
     assert_agrees(&mesh, &wide8, &rays).unwrap();
     assert!(rays.iter().filter(|r| wide8.intersect(r).is_some()).count() > 100);
+}
+
+/// The interleaved batch traversal on a deep tree (a triangle soup whose sizes halve from one to
+/// the next), with invalid rays among valid ones, on batches of lengths around the number of rays
+/// it keeps in flight: each answer is the single ray's.
+#[test]
+fn batches_of_any_length_through_deep_trees_answer_like_single_rays() {
+    let mut vertices = Vec::new();
+    let mut faces = Vec::new();
+    for k in 0..120u32 {
+        let s = 0.5f32.powi(k as i32 % 60) * if k >= 60 { -1.0 } else { 1.0 };
+        let base = vertices.len() as u32;
+        vertices.extend([
+            Vec3::new(s, 0.0, 0.0),
+            Vec3::new(s, s.abs(), 0.1),
+            Vec3::new(s, 0.0, s.abs()),
+        ]);
+        faces.push([base, base + 1, base + 2]);
+    }
+    let mesh = TriangleMesh::new(vertices, faces).unwrap();
+    let rays: Vec<Ray> = (0..70)
+        .map(|i| {
+            let y = 0.5f32.powi(i % 40) * 0.3;
+            let ray = Ray::new(Vec3::new(-2.0, y, y * 0.5), Vec3::X);
+            if i % 13 == 5 {
+                Ray::new(Vec3::new(f32::NAN, 0.0, 0.0), Vec3::X)
+            } else {
+                ray
+            }
+        })
+        .collect();
+    for leaf in [1, 4] {
+        for (name, accel) in layouts(&mesh, InsertionOrder::default(), leaf) {
+            for n in [0, 1, 15, 16, 17, 33, 70] {
+                let rays = &rays[..n];
+                let single: Vec<_> = rays.iter().map(|r| accel.intersect(r)).collect();
+                assert_eq!(accel.intersect_batch(rays), single, "{name}, {n} rays");
+                let single: Vec<_> = rays.iter().map(|r| accel.occluded(r)).collect();
+                assert_eq!(accel.occluded_batch(rays), single, "{name}, {n} rays");
+            }
+        }
+    }
 }
