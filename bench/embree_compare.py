@@ -208,7 +208,7 @@ def compare_mesh(mesh, args, layouts):
     work.mkdir(parents=True, exist_ok=True)
     subprocess.run(
         [str(args.hbv), "bench", str(mesh), "--rays", str(args.rays)]
-        + ["--ray-seed", str(args.ray_seed), "--write-rays", str(work)],
+        + ["--ray-seed", str(args.ray_seed), "--write-rays", str(work), "--force"],
         check=True,
         capture_output=True,
     )

@@ -108,16 +108,18 @@ fn json_report_has_every_layout_set_query_and_thread_count() {
 fn write_rays_writes_three_readable_files_of_the_asked_count() {
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("sets");
-    let write = || {
-        hbv(&[
+    let args = |extra: &'static [&'static str]| {
+        let mut args = vec![
             "bench",
             "--rays",
             "1000",
             "--write-rays",
             out_dir.to_str().unwrap(),
-        ])
+        ];
+        args.extend_from_slice(extra);
+        args
     };
-    write();
+    hbv(&args(&[]));
     let mut first = Vec::new();
     for set in ["primary", "diffuse", "shadow"] {
         let rays = ray_file::read_rays(&out_dir.join(format!("{set}.npz"))).unwrap();
@@ -125,8 +127,18 @@ fn write_rays_writes_three_readable_files_of_the_asked_count() {
         assert!(rays.iter().all(|r| r.is_valid() && r.tmin <= r.tmax));
         first.push(rays);
     }
-    // A second run writes the same rays.
-    write();
+    // A second run refuses to replace them, and says so; with --force it writes the same rays.
+    let refused = Command::new(env!("CARGO_BIN_EXE_hbv"))
+        .args(args(&[]))
+        .output()
+        .unwrap();
+    let message = String::from_utf8_lossy(&refused.stderr);
+    assert!(!refused.status.success());
+    assert!(
+        message.contains("primary.npz: the output file exists; pass --force to replace it"),
+        "{message}"
+    );
+    hbv(&args(&["--force"]));
     for (set, rays) in ["primary", "diffuse", "shadow"].iter().zip(&first) {
         let again = ray_file::read_rays(&out_dir.join(format!("{set}.npz"))).unwrap();
         assert_eq!(&again, rays, "{set}");

@@ -327,4 +327,18 @@ fn build_compare_rows_agree_with_their_expected_cost_and_plot() {
     }
     let png = std::fs::read(&plot).unwrap();
     assert_eq!(&png[1..4], b"PNG");
+    // The image is not replaced unless asked, and the refusal comes before any work.
+    let again = hbv(&[
+        "build-compare",
+        path.to_str().unwrap(),
+        "--plot",
+        plot.to_str().unwrap(),
+    ]);
+    assert!(!again.status.success());
+    assert!(
+        stderr(&again).contains("cost.png: the output file exists; pass --force to replace it"),
+        "{}",
+        stderr(&again)
+    );
+    assert_eq!(std::fs::read(&plot).unwrap(), png);
 }

@@ -60,6 +60,10 @@ pub struct BenchArgs {
     /// ../shared/RAYS.md) and stop, without building or tracing.
     #[arg(long = "write-rays", value_name = "DIR")]
     pub write_rays: Option<PathBuf>,
+    /// With --write-rays: replace ray files that exist (without this, an existing file is an
+    /// error and nothing is written).
+    #[arg(long, requires = "write_rays")]
+    pub force: bool,
 }
 
 /// The queries of [`hbv::Accelerator`], named as in `hbv trace --json`.
@@ -151,7 +155,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         .map(|&set| (set, set.generate(&mesh, args.rays, args.ray_seed)))
         .collect();
     if let Some(dir) = &args.write_rays {
-        return write_ray_sets(dir, &sets);
+        return write_ray_sets(dir, &sets, args.force);
     }
 
     let pools = thread_pools(args.threads)?;
@@ -272,11 +276,29 @@ fn measure_accelerator(
     results
 }
 
-/// Writes each set as `DIR/NAME.npz`, creating `DIR` if needed.
-fn write_ray_sets(dir: &std::path::Path, sets: &[(RaySet, Vec<Ray>)]) -> anyhow::Result<()> {
+/// Writes each set as `DIR/NAME.npz`, creating `DIR` if needed. Unless `force`, a file that
+/// exists already is an error, found before anything is written.
+fn write_ray_sets(
+    dir: &std::path::Path,
+    sets: &[(RaySet, Vec<Ray>)],
+    force: bool,
+) -> anyhow::Result<()> {
+    let path = |set: &RaySet| dir.join(format!("{}.npz", set.name()));
+    if !force {
+        if let Some(existing) = sets
+            .iter()
+            .map(|(set, _)| path(set))
+            .find(|p| std::fs::symlink_metadata(p).is_ok())
+        {
+            anyhow::bail!(
+                "{}: the output file exists; pass --force to replace it",
+                existing.display()
+            );
+        }
+    }
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     for (set, rays) in sets {
-        let path = dir.join(format!("{}.npz", set.name()));
+        let path = path(set);
         ray_file::write_rays(&path, rays)
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("wrote {} ({} rays)", path.display(), rays.len());

@@ -43,6 +43,10 @@ pub struct BuildCompareArgs {
     /// Draw predicted E[X] against measured tests to this PNG file.
     #[arg(long)]
     pub plot: Option<PathBuf>,
+    /// With --plot: replace the image if it exists (without this, an existing file is an error,
+    /// reported before any work).
+    #[arg(long, requires = "plot")]
+    pub force: bool,
 }
 
 /// One row of the table: a builder, optionally optimized, and its tree's costs.
@@ -68,6 +72,14 @@ struct Row {
 }
 
 pub fn run(args: &BuildCompareArgs) -> anyhow::Result<()> {
+    if let Some(plot) = &args.plot {
+        if !args.force && std::fs::symlink_metadata(plot).is_ok() {
+            anyhow::bail!(
+                "{}: the output file exists; pass --force to replace it",
+                plot.display()
+            );
+        }
+    }
     let (mesh, name, _) = load_mesh(args.mesh.as_deref())?;
     let bounds = mesh.bounds();
     let lines = isotropic_lines(&bounds, args.rays, args.seed);
