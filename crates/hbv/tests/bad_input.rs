@@ -513,6 +513,33 @@ fn unreadable_file_is_an_error_unless_privileged() {
     );
 }
 
+/// A mesh path that leads to a device (here a symlink `zeros.obj` to `/dev/zero`) is refused at
+/// once instead of being read forever; a pipe is read like a file.
+#[cfg(unix)]
+#[test]
+fn devices_are_refused_and_pipes_are_read() {
+    let dir = TempDir::new().unwrap();
+    let zeros = dir.path().join("zeros.obj");
+    std::os::unix::fs::symlink("/dev/zero", &zeros).unwrap();
+    let m = TriangleMesh::load(&zeros).unwrap_err().to_string();
+    assert!(
+        m.ends_with("zeros.obj: cannot read: a device or a socket, not a mesh file"),
+        "{m}"
+    );
+    let fifo = dir.path().join("pipe.obj");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        return; // no mkfifo here: the device case above is the point
+    }
+    let writer = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::write(fifo, TETRA_OBJ).unwrap())
+    };
+    let mesh = TriangleMesh::load(&fifo).unwrap();
+    writer.join().unwrap();
+    assert_eq!(mesh.triangle_count(), 4);
+}
+
 #[test]
 fn gltf_from_bytes_never_reads_other_files() {
     let gltf = r#"{"asset":{"version":"2.0"},"buffers":[{"uri":"data.bin","byteLength":48}]}"#;

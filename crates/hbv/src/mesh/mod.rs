@@ -78,6 +78,7 @@ impl TriangleMesh {
         let format = MeshFormat::from_path(path).ok_or_else(|| MeshError::UnsupportedFormat {
             source_name: path.into(),
         })?;
+        refuse_devices(path).map_err(|e| MeshError::io(path, e))?;
         let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
         match format {
             MeshFormat::Obj => obj::parse(path, &bytes),
@@ -150,6 +151,25 @@ impl TriangleMesh {
         self.triangles()
             .fold(Aabb::EMPTY, |b, t| b.union(&t.bounds()))
     }
+}
+
+/// Refuses a path that names a device or a socket (through any symlinks): `/dev/zero` or
+/// `/dev/urandom` would be read forever. Regular files and pipes (`<(...)`, FIFOs, which end
+/// when their writer closes) are read.
+fn refuse_devices(path: &Path) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let kind = std::fs::metadata(path)?.file_type();
+        if kind.is_char_device() || kind.is_block_device() || kind.is_socket() {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "a device or a socket, not a mesh file",
+            ));
+        }
+    }
+    let _ = path;
+    Ok(())
 }
 
 #[cfg(test)]
