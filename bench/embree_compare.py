@@ -49,6 +49,9 @@ CASES = [
 ]
 
 LAYOUTS = ["recursive", "skip", "ordered", "wide4", "wide8"]
+# A layout name ending in "-1by1" traces one call per ray (`hbv trace --one-by-one`) instead of the
+# interleaved batch: the speed of single-ray calls, as Embree's `rtcIntersect1` is called here.
+ONE_BY_ONE = "-1by1"
 
 
 def parse_args():
@@ -76,8 +79,8 @@ def parse_args():
     p.add_argument(
         "--layout",
         action="append",
-        choices=LAYOUTS,
-        help="hbv layout to compare; repeat for several (default: all)",
+        choices=LAYOUTS + [l + ONE_BY_ONE for l in LAYOUTS],
+        help="hbv layout to compare, or LAYOUT-1by1 for one call per ray; repeat for several (default: every layout, batched)",
     )
     p.add_argument(
         "--work",
@@ -170,7 +173,11 @@ class Embree:
 def hbv_trace(hbv, mesh, rays_path, out_path, layout, query, repeat, builder):
     """Answers of `hbv trace` and the Mrays/s of each of `repeat` invocations."""
     cmd = [str(hbv), "trace", str(mesh), "--rays", str(rays_path), "--out", str(out_path), "--force"]
+    single = layout.endswith(ONE_BY_ONE)
+    layout = layout.removesuffix(ONE_BY_ONE)
     cmd += ["--threads", "1", "--json", "--layout", layout, "--builder", builder]
+    if single:
+        cmd.append("--one-by-one")
     if query == "occluded":
         cmd.append("--occluded")
     runs = []

@@ -124,6 +124,29 @@ fn assert_trace_matches_brute_force(
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
     assert_eq!(hit_file::read_hits(&coherent_path).unwrap(), got);
+
+    // One call per ray gives the interleaved batch's answers, for both queries.
+    let single_path = dir.join("single.npz");
+    for query in [None, Some("--occluded")] {
+        let mut args = vec![
+            "trace",
+            m,
+            "--rays",
+            r,
+            "--out",
+            single_path.to_str().unwrap(),
+            "--one-by-one",
+            "--force",
+        ];
+        args.extend(query);
+        let out = hbv(&args);
+        assert!(out.status.success(), "{}", stderr(&out));
+        if query.is_some() {
+            assert_eq!(hit_file::read_occlusion(&single_path).unwrap(), occluded);
+        } else {
+            assert_eq!(hit_file::read_hits(&single_path).unwrap(), got);
+        }
+    }
 }
 
 #[test]

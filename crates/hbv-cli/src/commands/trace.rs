@@ -8,6 +8,7 @@ use clap::Args;
 use hbv_cli::{hit_file, ray_file};
 use serde_json::json;
 
+use hbv::geometry::Ray;
 use hbv::grid::{GridConfig, UniformGrid};
 use hbv::Accelerator;
 
@@ -33,6 +34,10 @@ pub struct TraceArgs {
     /// answers; measured slower than the default (interleaved single rays), kept for study.
     #[arg(long, conflicts_with = "occluded")]
     pub coherent: bool,
+    /// Trace each ray on its own (`Accelerator::intersect` / `occluded`, one call per ray) instead
+    /// of the interleaved batch: the speed of single-ray calls, as a renderer makes them.
+    #[arg(long, conflicts_with = "coherent")]
+    pub one_by_one: bool,
     /// Worker threads; 0 uses every core.
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
@@ -95,13 +100,19 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
 
     let start = Instant::now();
     let hits = if args.occluded {
-        let occluded = pool.install(|| accel.occluded_batch(&rays));
+        let occluded = if args.one_by_one {
+            pool.install(|| one_by_one(&rays, |r| accel.occluded(r)))
+        } else {
+            pool.install(|| accel.occluded_batch(&rays))
+        };
         let trace_seconds = start.elapsed().as_secs_f64();
         hit_file::write_occlusion(&args.out, &occluded).context("cannot write hits")?;
         (occluded.iter().filter(|&&o| o).count(), trace_seconds)
     } else {
         let hits = if args.coherent {
             pool.install(|| accel.intersect_coherent(&rays))
+        } else if args.one_by_one {
+            pool.install(|| one_by_one(&rays, |r| accel.intersect(r)))
         } else {
             pool.install(|| accel.intersect_batch(&rays))
         };
@@ -148,4 +159,10 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         println!("wrote     {}", args.out.display());
     }
     Ok(())
+}
+
+/// `query` on each ray, one call per ray, in parallel on the current pool.
+fn one_by_one<T: Send>(rays: &[Ray], query: impl Fn(&Ray) -> T + Sync + Send) -> Vec<T> {
+    use rayon::prelude::*;
+    rays.par_iter().with_min_len(256).map(query).collect()
 }
