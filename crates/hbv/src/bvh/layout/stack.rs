@@ -33,6 +33,13 @@ impl<T: Copy, const INLINE: usize> TraversalStack<T, INLINE> {
         }
     }
 
+    /// Empties the stack (keeping the spill's allocation).
+    #[inline]
+    pub fn clear(&mut self) {
+        self.len = 0;
+        self.spill.clear();
+    }
+
     #[inline]
     pub fn pop(&mut self) -> Option<T> {
         if let Some(v) = self.spill.pop() {

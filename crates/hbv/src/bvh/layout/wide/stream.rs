@@ -15,8 +15,8 @@
 
 use super::{BoxKernel, WideLayout, LEAF, LEAF_COUNT_SHIFT, LEAF_FIRST_MASK};
 use crate::bvh::layout::stack::TraversalStack;
-use crate::bvh::layout::wide_kernels::BoxRay;
-use crate::geometry::{PreparedRay, Ray};
+use crate::bvh::layout::wide_kernels::{BoxRay, Lanes};
+use crate::geometry::{Aabb, PreparedRay, Ray};
 use crate::query::Hit;
 use crate::stats::NoCount;
 
@@ -24,8 +24,8 @@ use crate::stats::NoCount;
 /// that their state stays in the L1 cache.
 pub(super) const STREAMS: usize = 16;
 
-/// One ray's traversal state, suspended between steps.
-struct RayInFlight {
+/// One ray's traversal state, suspended between steps, with its answer so far.
+struct RayInFlight<A> {
     ray: PreparedRay,
     box_ray: BoxRay,
     box_tmin: f32,
@@ -34,6 +34,7 @@ struct RayInFlight {
     current: u32,
     /// Index of the ray in the batch.
     index: usize,
+    answer: Option<A>,
     stack: TraversalStack<(u32, f32), 64>,
 }
 
@@ -83,55 +84,40 @@ impl<const W: usize> WideLayout<W> {
     ) {
         assert_eq!(rays.len(), answers.len());
         answers.iter_mut().for_each(|a| *a = None);
+        let Some((root, root_bounds)) = self.root else {
+            return;
+        };
         let mut next = 0;
-        let mut slots: [Option<RayInFlight>; STREAMS] = [const { None }; STREAMS];
-        for slot in &mut slots {
-            *slot = self.start_ray(rays, &mut next);
+        // The slots are reset in place for each new ray (a state holds its stack: too large to
+        // move per ray); bit `i` of `busy` says whether slot `i` holds a ray.
+        let idle = PreparedRay::new(&Ray::new(glam::Vec3::ZERO, glam::Vec3::X));
+        let mut slots: [RayInFlight<A>; STREAMS] = std::array::from_fn(|_| RayInFlight {
+            ray: idle,
+            box_ray: BoxRay::new(&idle),
+            box_tmin: 0.0,
+            box_tmax: 0.0,
+            current: root,
+            index: 0,
+            answer: None,
+            stack: TraversalStack::new(),
+        });
+        let mut busy = 0u32;
+        for (i, slot) in slots.iter_mut().enumerate() {
+            if start_ray(slot, rays, &mut next, root, &root_bounds) {
+                busy |= 1 << i;
+            }
         }
-        loop {
-            let mut in_flight = false;
-            for slot in &mut slots {
-                let Some(r) = slot else { continue };
-                in_flight = true;
-                let answer = &mut answers[r.index];
-                if let Step::Done = self.step::<K, A, NEAREST_FIRST>(r, answer, &visit_leaf) {
-                    *slot = self.start_ray(rays, &mut next);
+        while busy != 0 {
+            for i in Lanes(busy) {
+                let r = &mut slots[i];
+                if let Step::Done = self.step::<K, A, NEAREST_FIRST>(r, &visit_leaf) {
+                    answers[r.index] = r.answer.take();
+                    if !start_ray(r, rays, &mut next, root, &root_bounds) {
+                        busy &= !(1 << i);
+                    }
                 }
             }
-            if !in_flight {
-                return;
-            }
         }
-    }
-
-    /// Prepares the next ray of `rays` from `*next` that can hit the tree; the others (invalid,
-    /// or missing the root's box) keep their miss.
-    #[inline(always)]
-    fn start_ray(&self, rays: &[Ray], next: &mut usize) -> Option<RayInFlight> {
-        let (root, root_bounds) = self.root?;
-        while *next < rays.len() {
-            let index = *next;
-            *next += 1;
-            let ray = &rays[index];
-            if !ray.is_valid() {
-                continue;
-            }
-            let mut prepared = PreparedRay::new(ray);
-            prepared.bound_errors_within(&root_bounds);
-            if !root_bounds.hit_by(&prepared) {
-                continue;
-            }
-            return Some(RayInFlight {
-                box_ray: BoxRay::new(&prepared),
-                box_tmin: prepared.box_tmin(),
-                box_tmax: prepared.box_tmax(),
-                ray: prepared,
-                current: root,
-                index,
-                stack: TraversalStack::new(),
-            });
-        }
-        None
     }
 
     /// One step of ray `r`: visits its current node or leaf, chooses what comes next and asks
@@ -139,15 +125,14 @@ impl<const W: usize> WideLayout<W> {
     #[inline(always)]
     fn step<K: BoxKernel<W>, A, const NEAREST_FIRST: bool>(
         &self,
-        r: &mut RayInFlight,
-        answer: &mut Option<A>,
+        r: &mut RayInFlight<A>,
         visit_leaf: &impl Fn(&Self, usize, usize, &mut PreparedRay, &mut Option<A>) -> bool,
     ) -> Step {
         let current = r.current;
         if current & LEAF != 0 {
             let first = (current & LEAF_FIRST_MASK) as usize;
             let count = ((current & !LEAF) >> LEAF_COUNT_SHIFT) as usize + 1;
-            if visit_leaf(self, first, count, &mut r.ray, answer) {
+            if visit_leaf(self, first, count, &mut r.ray, &mut r.answer) {
                 return Step::Done;
             }
             r.box_tmax = r.ray.box_tmax();
@@ -173,4 +158,40 @@ impl<const W: usize> WideLayout<W> {
             }
         }
     }
+}
+
+/// Sets `r` up for the next ray of `rays` from `*next` that can hit the tree (`root`, bounded by
+/// `root_bounds`) and returns `true`, or `false` when none is left. The rays skipped (invalid,
+/// or missing the root's box) keep their miss.
+#[inline(always)]
+fn start_ray<A>(
+    r: &mut RayInFlight<A>,
+    rays: &[Ray],
+    next: &mut usize,
+    root: u32,
+    root_bounds: &Aabb,
+) -> bool {
+    while *next < rays.len() {
+        let index = *next;
+        *next += 1;
+        let ray = &rays[index];
+        if !ray.is_valid() {
+            continue;
+        }
+        let mut prepared = PreparedRay::new(ray);
+        prepared.bound_errors_within(root_bounds);
+        if !root_bounds.hit_by(&prepared) {
+            continue;
+        }
+        r.box_ray = BoxRay::new(&prepared);
+        r.box_tmin = prepared.box_tmin();
+        r.box_tmax = prepared.box_tmax();
+        r.ray = prepared;
+        r.current = root;
+        r.index = index;
+        r.answer = None;
+        r.stack.clear();
+        return true;
+    }
+    false
 }
