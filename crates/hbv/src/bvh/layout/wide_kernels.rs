@@ -20,15 +20,37 @@ pub(crate) struct BoxRay {
     inv_direction: [f32; 3],
     /// Which side of `LaneBoxes` is the near plane on each axis: 1 (max) for a negative direction.
     near_side: [usize; 3],
+    /// The rows of `LaneBoxes` read as `[[f32; W]; 6]` (`3 · side + axis`) that hold each axis's
+    /// near and far planes: always below 6, so the SIMD kernels read them without bounds checks.
+    near_row: [usize; 3],
+    far_row: [usize; 3],
 }
 
 impl BoxRay {
     pub fn new(ray: &PreparedRay) -> Self {
+        let near_side = ray.negative.map(usize::from);
         Self {
             origin: ray.origin.to_array(),
             inv_direction: ray.inv_direction.to_array(),
-            near_side: ray.negative.map(usize::from),
+            near_side,
+            near_row: [0, 1, 2].map(|axis| 3 * near_side[axis] + axis),
+            far_row: [0, 1, 2].map(|axis| 3 * (1 - near_side[axis]) + axis),
         }
+    }
+
+    /// The `W` near-plane coordinates of `axis` in `boxes`.
+    #[inline(always)]
+    fn near_planes<'b, const W: usize>(&self, boxes: &'b LaneBoxes<W>, axis: usize) -> &'b [f32; W] {
+        // SAFETY: `near_row` holds `3 · side + axis` with side 0 or 1 and axis 0 to 2 (set only
+        // in `new`), so the row is in 0..6, inside the 6 rows of `boxes`.
+        unsafe { boxes.as_flattened().get_unchecked(self.near_row[axis]) }
+    }
+
+    /// The `W` far-plane coordinates of `axis` in `boxes`.
+    #[inline(always)]
+    fn far_planes<'b, const W: usize>(&self, boxes: &'b LaneBoxes<W>, axis: usize) -> &'b [f32; W] {
+        // SAFETY: as in `near_planes`: the row is in 0..6.
+        unsafe { boxes.as_flattened().get_unchecked(self.far_row[axis]) }
     }
 }
 
@@ -87,11 +109,10 @@ pub(crate) fn boxes_sse<const W: usize>(
         let mut near = _mm_set1_ps(f32::NEG_INFINITY);
         let mut far = _mm_set1_ps(f32::INFINITY);
         for axis in 0..3 {
-            let side = ray.near_side[axis];
             let o = _mm_set1_ps(ray.origin[axis]);
             let inv = _mm_set1_ps(ray.inv_direction[axis]);
-            let n = _mm_loadu_ps(boxes[side][axis].as_ptr().add(offset));
-            let f = _mm_loadu_ps(boxes[1 - side][axis].as_ptr().add(offset));
+            let n = _mm_loadu_ps(ray.near_planes(boxes, axis).as_ptr().add(offset));
+            let f = _mm_loadu_ps(ray.far_planes(boxes, axis).as_ptr().add(offset));
             near = _mm_max_ps(_mm_mul_ps(_mm_sub_ps(n, o), inv), near);
             far = _mm_min_ps(_mm_mul_ps(_mm_sub_ps(f, o), inv), far);
         }
@@ -134,11 +155,10 @@ pub(crate) unsafe fn boxes_avx(
         let mut near = _mm256_set1_ps(f32::NEG_INFINITY);
         let mut far = _mm256_set1_ps(f32::INFINITY);
         for axis in 0..3 {
-            let side = ray.near_side[axis];
             let o = _mm256_set1_ps(ray.origin[axis]);
             let inv = _mm256_set1_ps(ray.inv_direction[axis]);
-            let n = _mm256_loadu_ps(boxes[side][axis].as_ptr());
-            let f = _mm256_loadu_ps(boxes[1 - side][axis].as_ptr());
+            let n = _mm256_loadu_ps(ray.near_planes(boxes, axis).as_ptr());
+            let f = _mm256_loadu_ps(ray.far_planes(boxes, axis).as_ptr());
             near = _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(n, o), inv), near);
             far = _mm256_min_ps(_mm256_mul_ps(_mm256_sub_ps(f, o), inv), far);
         }
