@@ -65,9 +65,13 @@ pub struct PreparedRay {
     pub negative: [bool; 3],
     pub tmin: f32,
     pub tmax: f32,
+    /// Always a permutation of 0, 1, 2 (set only by [`PreparedRay::new`]): kernels index
+    /// 3-arrays with them unchecked.
     pub(crate) kx: usize,
     pub(crate) ky: usize,
     pub(crate) kz: usize,
+    /// The origin's coordinates on the axes `kx`, `ky`, `kz`.
+    pub(crate) origin_k: [f32; 3],
     pub(crate) shear: Vec3,
     /// Absolute widening of `[tmin, tmax]` for box tests; see [`PreparedRay::bound_errors_within`].
     pub(crate) box_margin: f32,
@@ -111,6 +115,7 @@ impl PreparedRay {
             kx,
             ky,
             kz,
+            origin_k: [ray.origin[kx], ray.origin[ky], ray.origin[kz]],
             shear,
             box_margin: 0.0,
         }

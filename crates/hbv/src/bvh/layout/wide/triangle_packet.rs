@@ -181,20 +181,21 @@ impl TrianglePacket {
         use std::arch::x86_64::*;
         let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
         // SAFETY: SSE2 is part of the x86_64 baseline; each load reads one `[f32; 4]` array of
-        // this 16-byte aligned packet, and each store writes one `[f32; 4]`.
+        // this 16-byte aligned packet (the unchecked axis indices are below 3: `PreparedRay`
+        // sets them to a permutation of 0, 1, 2), and each store writes one `[f32; 4]`.
         unsafe {
-            let ox = _mm_set1_ps(ray.origin[kx]);
-            let oy = _mm_set1_ps(ray.origin[ky]);
-            let oz = _mm_set1_ps(ray.origin[kz]);
+            let [ox, oy, oz] = ray.origin_k.map(|o| _mm_set1_ps(o));
             let sx = _mm_set1_ps(ray.shear.x);
             let sy = _mm_set1_ps(ray.shear.y);
             let sz = _mm_set1_ps(ray.shear.z);
             let sign_bit = _mm_set1_ps(-0.0);
             let abs = |x: __m128| _mm_andnot_ps(sign_bit, x);
+            // `kx`, `ky`, `kz` are a permutation of 0, 1, 2 (`PreparedRay`'s invariant).
+            let axis = |v: usize, k: usize| self.vertices[v].get_unchecked(k).as_ptr();
             let sheared = |v: usize| {
-                let x = _mm_sub_ps(_mm_load_ps(self.vertices[v][kx].as_ptr()), ox);
-                let y = _mm_sub_ps(_mm_load_ps(self.vertices[v][ky].as_ptr()), oy);
-                let z = _mm_sub_ps(_mm_load_ps(self.vertices[v][kz].as_ptr()), oz);
+                let x = _mm_sub_ps(_mm_load_ps(axis(v, kx)), ox);
+                let y = _mm_sub_ps(_mm_load_ps(axis(v, ky)), oy);
+                let z = _mm_sub_ps(_mm_load_ps(axis(v, kz)), oz);
                 let m = _mm_max_ps(_mm_max_ps(abs(x), abs(y)), abs(z));
                 (
                     _mm_sub_ps(x, _mm_mul_ps(sx, z)),
