@@ -2,7 +2,10 @@
 
 mod packet;
 mod stream;
+mod traversal;
 mod triangle_packet;
+
+use traversal::{Step, Traversal};
 
 pub(super) use triangle_packet::TrianglePacket;
 
@@ -159,63 +162,23 @@ impl<const W: usize> WideLayout<W> {
         LEAF | ((count - 1) << LEAF_COUNT_SHIFT) | first
     }
 
-    /// Nearest-first traversal; `visit_leaf(first_packet, packet_count, ray)` returns `true` to stop.
+    /// One ray's traversal (valid: checked by the caller), nearest child first when
+    /// `NEAREST_FIRST`: each leaf reached goes to `visit_leaf(first_packet, packet_count, ray,
+    /// counter)`, which returns `true` to stop. See [`Traversal::step`].
     #[inline(always)]
     fn traverse<C: Counter, K: BoxKernel<W>, const NEAREST_FIRST: bool>(
         &self,
-        ray: &mut PreparedRay,
+        ray: &Ray,
         counter: &mut C,
         mut visit_leaf: impl FnMut(usize, usize, &mut PreparedRay, &mut C) -> bool,
     ) {
-        let Some((root, root_bounds)) = self.root else {
-            return;
-        };
-        ray.bound_errors_within(&root_bounds);
-        // The root's box costs one scalar test, and rejects most rays that miss everything (half
-        // or more of the camera rays of a scene without walls) at the cheapest point.
-        counter.boxes_tested(1);
-        if !root_bounds.hit_by(ray) {
+        let mut traversal = Traversal::idle();
+        if !traversal.restart(self, ray, counter) {
             return;
         }
-        let box_ray = BoxRay::new(ray);
-        let box_tmin = ray.box_tmin();
-        let mut box_tmax = ray.box_tmax();
-        let mut stack: TraversalStack<(u32, f32), 64> = TraversalStack::new();
-        let mut current = root;
-        loop {
-            counter.node_visited();
-            if current & LEAF != 0 {
-                let first = (current & LEAF_FIRST_MASK) as usize;
-                let count = ((current & !LEAF) >> LEAF_COUNT_SHIFT) as usize + 1;
-                if visit_leaf(first, count, ray, counter) {
-                    return;
-                }
-                box_tmax = ray.box_tmax();
-            } else {
-                counter.boxes_tested(W as u32);
-                let (mask, entry) = K::test(
-                    &self.nodes[current as usize].boxes,
-                    &box_ray,
-                    box_tmin,
-                    box_tmax,
-                );
-                if let Some(next) = self.descend::<NEAREST_FIRST>(
-                    &self.nodes[current as usize].children,
-                    mask,
-                    &entry,
-                    &mut stack,
-                ) {
-                    current = next;
-                    continue;
-                }
-            }
-            current = loop {
-                match stack.pop() {
-                    Some((n, near)) if near <= box_tmax => break n,
-                    Some(_) => continue,
-                    None => return,
-                }
-            };
+        while let Step::Continue =
+            traversal.step::<W, C, K, NEAREST_FIRST, false>(self, counter, &mut visit_leaf)
+        {
         }
     }
 }
@@ -447,9 +410,8 @@ impl<const W: usize> WideLayout<W> {
         ray: &Ray,
         counter: &mut C,
     ) -> Option<Hit> {
-        let mut prepared = PreparedRay::new(ray);
         let mut best = None;
-        self.traverse::<C, K, true>(&mut prepared, counter, |first, count, ray, counter| {
+        self.traverse::<C, K, true>(ray, counter, |first, count, ray, counter| {
             self.closest_hit_in_leaf(first, count, ray, &mut best, counter);
             false
         });
@@ -458,9 +420,8 @@ impl<const W: usize> WideLayout<W> {
 
     #[inline(always)]
     fn any_hit_with<C: Counter, K: BoxKernel<W>>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
-        let mut prepared = PreparedRay::new(ray);
         let mut found = None;
-        self.traverse::<C, K, false>(&mut prepared, counter, |first, count, ray, counter| {
+        self.traverse::<C, K, false>(ray, counter, |first, count, ray, counter| {
             found = self.any_hit_in_leaf(first, count, ray, counter);
             found.is_some()
         });
@@ -551,8 +512,7 @@ impl<const W: usize> WideLayout<W> {
         ray: &Ray,
         visit: &mut impl FnMut(&[TrianglePacket], &PreparedRay),
     ) {
-        let mut prepared = PreparedRay::new(ray);
-        self.traverse::<NoCount, K, false>(&mut prepared, &mut NoCount, |first, count, ray, _| {
+        self.traverse::<NoCount, K, false>(ray, &mut NoCount, |first, count, ray, _| {
             visit(&self.packets[first..first + count], ray);
             false
         });

@@ -40,7 +40,11 @@ impl BoxRay {
 
     /// The `W` near-plane coordinates of `axis` in `boxes`.
     #[inline(always)]
-    fn near_planes<'b, const W: usize>(&self, boxes: &'b LaneBoxes<W>, axis: usize) -> &'b [f32; W] {
+    fn near_planes<'b, const W: usize>(
+        &self,
+        boxes: &'b LaneBoxes<W>,
+        axis: usize,
+    ) -> &'b [f32; W] {
         // SAFETY: `near_row` holds `3 · side + axis` with side 0 or 1 and axis 0 to 2 (set only
         // in `new`), so the row is in 0..6, inside the 6 rows of `boxes`.
         unsafe { boxes.as_flattened().get_unchecked(self.near_row[axis]) }

@@ -1,0 +1,131 @@
+//! One ray's walk through a [`WideLayout`], kept as a state that advances one node at a time:
+//! the single-ray queries run it to the end at once, the batch queries interleave several
+//! (`stream.rs`). Both therefore take exactly the same steps for a ray.
+
+use super::{BoxKernel, WideLayout, LEAF, LEAF_COUNT_SHIFT, LEAF_FIRST_MASK};
+use crate::bvh::layout::stack::TraversalStack;
+use crate::bvh::layout::wide_kernels::BoxRay;
+use crate::geometry::{PreparedRay, Ray};
+use crate::stats::Counter;
+
+/// A ray's traversal between two steps: the ray (its `tmax` shrinks as closer hits are found),
+/// its box-test constants, the node or leaf to visit next and the postponed ones.
+pub(super) struct Traversal {
+    pub ray: PreparedRay,
+    box_ray: BoxRay,
+    /// `[box_tmin, box_tmax]`: the ray's interval widened for the box tests
+    /// ([`PreparedRay::bound_errors_within`]); `box_tmax` follows `ray.tmax`.
+    box_tmin: f32,
+    box_tmax: f32,
+    current: u32,
+    /// Postponed children with their entry distances, the nearest on top.
+    stack: TraversalStack<(u32, f32), 64>,
+}
+
+/// What one step left.
+pub(super) enum Step {
+    /// The traversal goes on.
+    Continue,
+    /// The traversal is over: every node that could hold an answer was visited, or the leaf
+    /// visitor asked to stop.
+    Done,
+}
+
+impl Traversal {
+    /// A state holding no ray, to be set up with [`Traversal::restart`].
+    pub fn idle() -> Self {
+        let ray = PreparedRay::new(&Ray::new(glam::Vec3::ZERO, glam::Vec3::X));
+        Self {
+            box_ray: BoxRay::new(&ray),
+            ray,
+            box_tmin: 0.0,
+            box_tmax: 0.0,
+            current: 0,
+            stack: TraversalStack::new(),
+        }
+    }
+
+    /// Sets the state up, in place, for `ray` (valid: checked by the caller) through `layout`.
+    /// Returns `false`, and leaves nothing to do, when the ray cannot meet the tree: the tree is
+    /// empty or the ray misses the root's box. That scalar test of the root box rejects most
+    /// rays that miss everything (half or more of the camera rays of a scene without walls) at
+    /// the cheapest point.
+    #[inline(always)]
+    pub fn restart<const W: usize, C: Counter>(
+        &mut self,
+        layout: &WideLayout<W>,
+        ray: &Ray,
+        counter: &mut C,
+    ) -> bool {
+        let Some((root, root_bounds)) = layout.root else {
+            return false;
+        };
+        let mut prepared = PreparedRay::new(ray);
+        prepared.bound_errors_within(&root_bounds);
+        counter.boxes_tested(1);
+        if !root_bounds.hit_by(&prepared) {
+            return false;
+        }
+        self.box_ray = BoxRay::new(&prepared);
+        self.box_tmin = prepared.box_tmin();
+        self.box_tmax = prepared.box_tmax();
+        self.ray = prepared;
+        self.current = root;
+        self.stack.clear();
+        true
+    }
+
+    /// Visits the current node or leaf and chooses what comes next.
+    ///
+    /// A leaf goes to `visit_leaf(first_packet, packet_count, ray, counter)`, which may shrink
+    /// `ray.tmax` and returns `true` to end the traversal. A node's `W` child boxes are tested
+    /// at once and the step goes on to the child [`WideLayout::descend`] chooses; when none is
+    /// met, or after a leaf, to the nearest postponed child that still begins within the
+    /// (possibly shrunk) interval. With `PREFETCH_NEXT` the next node's memory is asked for
+    /// at once (for interleaved rays, which visit it only after the others' steps).
+    #[inline(always)]
+    pub fn step<const W: usize, C, K, const NEAREST_FIRST: bool, const PREFETCH_NEXT: bool>(
+        &mut self,
+        layout: &WideLayout<W>,
+        counter: &mut C,
+        mut visit_leaf: impl FnMut(usize, usize, &mut PreparedRay, &mut C) -> bool,
+    ) -> Step
+    where
+        C: Counter,
+        K: BoxKernel<W>,
+    {
+        counter.node_visited();
+        let current = self.current;
+        if current & LEAF != 0 {
+            let first = (current & LEAF_FIRST_MASK) as usize;
+            let count = ((current & !LEAF) >> LEAF_COUNT_SHIFT) as usize + 1;
+            if visit_leaf(first, count, &mut self.ray, counter) {
+                return Step::Done;
+            }
+            self.box_tmax = self.ray.box_tmax();
+        } else {
+            counter.boxes_tested(W as u32);
+            let node = &layout.nodes[current as usize];
+            let (mask, entry) = K::test(&node.boxes, &self.box_ray, self.box_tmin, self.box_tmax);
+            if let Some(next) =
+                layout.descend::<NEAREST_FIRST>(&node.children, mask, &entry, &mut self.stack)
+            {
+                if PREFETCH_NEXT {
+                    layout.prefetch(next);
+                }
+                self.current = next;
+                return Step::Continue;
+            }
+        }
+        loop {
+            match self.stack.pop() {
+                Some((n, near)) if near <= self.box_tmax => {
+                    self.current = n;
+                    return Step::Continue;
+                }
+                Some(_) => continue,
+                None => return Step::Done,
+            }
+        }
+    }
+}
