@@ -115,7 +115,10 @@ impl PreparedRay {
             kx,
             ky,
             kz,
-            origin_k: [ray.origin[kx], ray.origin[ky], ray.origin[kz]],
+            origin_k: {
+                let o = ray.origin.to_array();
+                [o[kx], o[ky], o[kz]]
+            },
             shear,
             box_margin: 0.0,
         }
