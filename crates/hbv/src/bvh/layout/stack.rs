@@ -33,6 +33,19 @@ impl<T: Copy, const INLINE: usize> TraversalStack<T, INLINE> {
         }
     }
 
+    /// Pushes `value` if `keep`, without branching on `keep` while the inline array has room
+    /// (the value is written in any case, and counted only if kept).
+    #[inline]
+    pub fn push_if(&mut self, value: T, keep: bool) {
+        if self.len < INLINE {
+            // `len < INLINE` means nothing has spilled: the inline top is the stack's top.
+            self.inline[self.len] = MaybeUninit::new(value);
+            self.len += usize::from(keep);
+        } else if keep {
+            self.spill.push(value);
+        }
+    }
+
     /// Empties the stack (keeping the spill's allocation).
     #[inline]
     pub fn clear(&mut self) {
@@ -65,6 +78,18 @@ mod tests {
             s.push(i);
         }
         for i in (0..10).rev() {
+            assert_eq!(s.pop(), Some(i));
+        }
+        assert_eq!(s.pop(), None);
+    }
+
+    #[test]
+    fn push_if_keeps_only_what_it_is_told_to_inline_and_spilled() {
+        let mut s: TraversalStack<u32, 4> = TraversalStack::new();
+        for i in 0..12 {
+            s.push_if(i, i % 2 == 0);
+        }
+        for i in (0..12).rev().filter(|i| i % 2 == 0) {
             assert_eq!(s.pop(), Some(i));
         }
         assert_eq!(s.pop(), None);

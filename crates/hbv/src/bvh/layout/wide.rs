@@ -210,20 +210,21 @@ impl<const W: usize> WideLayout<W> {
             return Some(children[first]);
         }
         let rest = hits.0;
-        if rest == 0 {
-            // One child met: go straight there.
-            return Some(children[first]);
-        }
-        let second = rest.trailing_zeros() as usize;
-        if rest & (rest - 1) == 0 {
-            // Two: visit the nearer, postpone the farther.
+        if rest & rest.wrapping_sub(1) == 0 {
+            // One or two children met (most nodes): visit the nearer, postpone the other if
+            // there is one. Selects, not branches, on which case it is: it is unpredictable.
+            let second = if rest == 0 {
+                first
+            } else {
+                rest.trailing_zeros() as usize
+            };
             let (near, far) = if entry[second] < entry[first] {
                 (second, first)
             } else {
                 (first, second)
             };
             self.prefetch(children[far]);
-            stack.push((children[far], entry[far]));
+            stack.push_if((children[far], entry[far]), rest != 0);
             return Some(children[near]);
         }
         // Three or more: insertion sort by decreasing entry distance (at most 8 entries).
