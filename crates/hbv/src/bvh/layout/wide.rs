@@ -202,14 +202,25 @@ impl<const W: usize> WideLayout<W> {
     ) -> Option<u32> {
         let mut hits = Lanes(mask);
         let first = hits.next()?;
+        let rest = hits.0;
         if !NEAREST_FIRST {
+            if rest & rest.wrapping_sub(1) == 0 {
+                // One or two: as below, without a branch on which.
+                let second = if rest == 0 {
+                    first
+                } else {
+                    rest.trailing_zeros() as usize
+                };
+                self.prefetch(children[second]);
+                stack.push_if((children[second], entry[second]), rest != 0);
+                return Some(children[first]);
+            }
             for lane in hits {
                 self.prefetch(children[lane]);
                 stack.push((children[lane], entry[lane]));
             }
             return Some(children[first]);
         }
-        let rest = hits.0;
         if rest & rest.wrapping_sub(1) == 0 {
             // One or two children met (most nodes): visit the nearer, postpone the other if
             // there is one. Selects, not branches, on which case it is: it is unpredictable.
