@@ -1,0 +1,232 @@
+//! The tree the nearest-point search walks: 4-child nodes with their children's boxes side by
+//! side ([`QuadNode`]), and leaves of [`TrianglePacket`]s, made from any builder's
+//! [`BuildTree`].
+//!
+//! **Collapse** (as for wide ray-tracing BVHs, Wald et al. 2008, "Getting rid of packets"):
+//! a node's children are its build node's children; while there are fewer than four, the
+//! internal child of largest surface area is replaced by its own children (when they fit). A
+//! child with at most [`SearchTreeConfig::leaf_triangles`] triangles below it becomes one leaf
+//! (its whole subtree, flattened), since testing a few triangles in packets of four costs less
+//! than visiting nodes. A build node with more than four children (n-ary builders) is split into
+//! four groups along its longest axis, each group a node of its own.
+
+use glam::Vec3;
+
+use super::box_bound::Box4;
+use super::triangle_packet::TrianglePacket;
+use crate::bvh::{BuildTree, NodeContent, NodeId};
+use crate::geometry::Aabb;
+use crate::mesh::TriangleMesh;
+
+/// Knobs of [`SearchTree::new`].
+#[derive(Clone, Copy, Debug)]
+pub struct SearchTreeConfig {
+    /// A subtree with at most this many triangles becomes one leaf. Default 8 (two packets).
+    pub leaf_triangles: usize,
+}
+
+impl Default for SearchTreeConfig {
+    fn default() -> Self {
+        Self { leaf_triangles: 8 }
+    }
+}
+
+/// Four children: their boxes, and for each either a node (`triangles == 0`, `child` its index),
+/// a leaf (`triangles` of them in packets from `child`), or nothing (`child == NONE`).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub(super) struct QuadNode {
+    pub bounds: Box4,
+    pub child: [u32; 4],
+    pub triangles: [u32; 4],
+}
+
+impl QuadNode {
+    /// `child` of an empty slot.
+    pub const NONE: u32 = u32::MAX;
+
+    const EMPTY: QuadNode = QuadNode {
+        bounds: Box4::EMPTY,
+        child: [Self::NONE; 4],
+        triangles: [0; 4],
+    };
+
+    fn set_bounds(&mut self, slot: usize, b: &Aabb) {
+        for axis in 0..3 {
+            self.bounds.min[axis][slot] = b.min[axis];
+            self.bounds.max[axis][slot] = b.max[axis];
+        }
+    }
+}
+
+/// Nodes (the root is `nodes[0]`; none for an empty mesh), triangle packets, and the largest
+/// coordinate magnitude of the triangles kept (for the rounding margin of the search).
+#[derive(Clone, Debug, Default)]
+pub(super) struct SearchTree {
+    pub nodes: Vec<QuadNode>,
+    pub packets: Vec<TrianglePacket>,
+    pub mesh_scale: f64,
+}
+
+/// What one slot of a node will become.
+enum Slot {
+    /// A build node that stays a node (more triangles than a leaf takes).
+    Node(NodeId),
+    /// A build node whose subtree becomes one leaf.
+    Leaf(NodeId),
+    /// Several build nodes (siblings of an n-ary node), made a node of their own.
+    Group(Vec<NodeId>),
+}
+
+impl SearchTree {
+    /// Collapses `tree` (over `mesh`) as the module describes; degenerate triangles are left
+    /// out.
+    pub fn new(tree: &BuildTree, mesh: &TriangleMesh, config: SearchTreeConfig) -> Self {
+        let mut search = SearchTree::default();
+        let Some(root) = tree.root() else {
+            return search;
+        };
+        let below = triangles_below(tree);
+        let leaf_max = config.leaf_triangles.max(1) as u32;
+        search.nodes.push(QuadNode::EMPTY);
+        let mut pending: Vec<(Vec<NodeId>, usize)> = vec![(vec![root], 0)];
+        while let Some((members, index)) = pending.pop() {
+            let slots = search.slots_of(tree, &below, leaf_max, members);
+            for (k, slot) in slots.into_iter().enumerate() {
+                match slot {
+                    Slot::Leaf(id) => {
+                        let first = search.packets.len() as u32;
+                        let count = search.push_leaf(tree, mesh, id);
+                        if count > 0 {
+                            let node = &mut search.nodes[index];
+                            node.set_bounds(k, &tree.node(id).bounds);
+                            node.child[k] = first;
+                            node.triangles[k] = count;
+                        }
+                    }
+                    Slot::Node(id) => {
+                        let child = search.nodes.len();
+                        search.nodes.push(QuadNode::EMPTY);
+                        let node = &mut search.nodes[index];
+                        node.set_bounds(k, &tree.node(id).bounds);
+                        node.child[k] = child as u32;
+                        pending.push((tree.node(id).children().to_vec(), child));
+                    }
+                    Slot::Group(ids) => {
+                        let child = search.nodes.len();
+                        search.nodes.push(QuadNode::EMPTY);
+                        let bounds = ids
+                            .iter()
+                            .fold(Aabb::EMPTY, |b, &id| b.union(&tree.node(id).bounds));
+                        let node = &mut search.nodes[index];
+                        node.set_bounds(k, &bounds);
+                        node.child[k] = child as u32;
+                        pending.push((ids, child));
+                    }
+                }
+            }
+        }
+        search
+    }
+
+    /// The (at most four) slots of a node whose children are `members`: small subtrees become
+    /// leaves, the largest internal child is opened while it fits, and more than four are
+    /// grouped.
+    fn slots_of(
+        &self,
+        tree: &BuildTree,
+        below: &[u32],
+        leaf_max: u32,
+        mut members: Vec<NodeId>,
+    ) -> Vec<Slot> {
+        let opens = |id: NodeId| {
+            matches!(tree.node(id).content, NodeContent::Internal(_))
+                && below[id as usize] > leaf_max
+        };
+        while members.len() < 4 {
+            let widest = members
+                .iter()
+                .enumerate()
+                .filter(|&(_, &id)| opens(id))
+                .max_by(|a, b| {
+                    let area = |id: NodeId| tree.node(id).bounds.surface_area();
+                    area(*a.1).total_cmp(&area(*b.1))
+                });
+            let Some((k, &id)) = widest else { break };
+            let children = tree.node(id).children();
+            if members.len() - 1 + children.len() > 4 {
+                break;
+            }
+            members.swap_remove(k);
+            members.extend_from_slice(children);
+        }
+        let classify = |id: NodeId| {
+            if opens(id) {
+                Slot::Node(id)
+            } else {
+                Slot::Leaf(id)
+            }
+        };
+        if members.len() > 4 {
+            return group_in_four(tree, members)
+                .into_iter()
+                .map(|group| match group.as_slice() {
+                    [only] => classify(*only),
+                    _ => Slot::Group(group),
+                })
+                .collect();
+        }
+        members.into_iter().map(classify).collect()
+    }
+
+    /// Appends the non-degenerate triangles below `id` as packets; returns how many.
+    fn push_leaf(&mut self, tree: &BuildTree, mesh: &TriangleMesh, id: NodeId) -> u32 {
+        let mut kept: Vec<(u32, [Vec3; 3])> = Vec::new();
+        for p in tree.prims_below(id) {
+            let t = mesh.triangle(p as usize);
+            if t.is_degenerate() {
+                continue;
+            }
+            for v in [t.p0, t.p1, t.p2] {
+                self.mesh_scale = self.mesh_scale.max(v.abs().max_element() as f64);
+            }
+            kept.push((p, [t.p0, t.p1, t.p2]));
+        }
+        for four in kept.chunks(4) {
+            self.packets.push(TrianglePacket::new(four));
+        }
+        kept.len() as u32
+    }
+}
+
+/// More than four siblings in four groups of nearly equal size, by their centres along the
+/// longest axis of their union.
+fn group_in_four(tree: &BuildTree, mut members: Vec<NodeId>) -> Vec<Vec<NodeId>> {
+    let bounds = members
+        .iter()
+        .fold(Aabb::EMPTY, |b, &id| b.union(&tree.node(id).bounds));
+    let axis = bounds.extent().max_position();
+    members.sort_by(|&a, &b| {
+        let c = |id: NodeId| tree.node(id).bounds.center()[axis];
+        c(a).total_cmp(&c(b))
+    });
+    let n = members.len();
+    (0..4)
+        .map(|g| members[g * n / 4..(g + 1) * n / 4].to_vec())
+        .collect()
+}
+
+/// The number of triangles below each build node (indexed by node id; 0 for nodes not
+/// reachable from the root), children counted before parents.
+fn triangles_below(tree: &BuildTree) -> Vec<u32> {
+    let mut order = Vec::new();
+    tree.walk(|id, _| order.push(id));
+    let mut below = vec![0u32; tree.nodes().len()];
+    for &id in order.iter().rev() {
+        below[id as usize] = match &tree.node(id).content {
+            NodeContent::Leaf(prims) => prims.len() as u32,
+            NodeContent::Internal(children) => children.iter().map(|&c| below[c as usize]).sum(),
+        };
+    }
+    below
+}
