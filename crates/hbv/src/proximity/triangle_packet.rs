@@ -142,3 +142,84 @@ impl TrianglePacket {
 const SUM_SLACK: f32 = 1.0 / 1_048_576.0;
 /// `2⁻¹⁸`: the relative slack of the support bound's square and division.
 const RATIO_SLACK: f32 = 1.0 / 262_144.0;
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+    use proptest::prelude::*;
+
+    use super::*;
+    use crate::proximity::box_bound::prune_threshold;
+    use crate::proximity::point_triangle::closest_point_on_triangle;
+
+    fn vec3(s: f32) -> impl Strategy<Value = Vec3> {
+        (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0).prop_map(move |(x, y, z)| Vec3::new(x, y, z) * s)
+    }
+
+    /// Four triangles of one size around one centre: tiny to huge, near and far from the origin.
+    fn packet() -> impl Strategy<Value = (Vec3, f32, Vec<[Vec3; 3]>)> {
+        let centre = prop_oneof![Just(0.0f32), Just(1e3), Just(1e7), Just(1e18)];
+        let size = prop_oneof![Just(1e-4f32), Just(1.0), Just(1e3), Just(1e6)];
+        (centre, size).prop_flat_map(|(c, s)| {
+            (
+                vec3(c),
+                Just(s),
+                prop::collection::vec(
+                    (vec3(s), vec3(s), vec3(s)).prop_map(|(a, b, c)| [a, b, c]),
+                    4,
+                ),
+            )
+        })
+    }
+
+    proptest! {
+        /// Both bounds stay at or below the threshold of the exact f64 squared distance: a
+        /// triangle is never pruned against a best equal to its own distance.
+        #[test]
+        fn bounds_never_exceed_the_exact_distance((centre, size, tris) in packet(), offset in vec3(1.0), reach in prop_oneof![Just(0.0f32), Just(1e-6), Just(1e-3), Just(1.0), Just(30.0)]) {
+            let tris: Vec<(u32, [Vec3; 3])> = tris
+                .into_iter()
+                .enumerate()
+                .map(|(i, [a, b, c])| (i as u32, [centre + a, centre + b, centre + c]))
+                .collect();
+            // Degenerate triangles never reach a packet.
+            prop_assume!(tris.iter().all(|(_, [a, b, c])| (*b - *a).cross(*c - *a).length_squared() > 0.0));
+            let packet = TrianglePacket::new(&tris);
+            let p = (tris[0].1[0].as_dvec3() + offset.as_dvec3() * (size as f64 * reach as f64))
+                + DVec3::new(1e-9, -3e-10, 0.0) * size as f64;
+            let bracket = PointBracket::new(p);
+            let bounds = packet.distance_squared_lower_bounds(&bracket);
+            let support = packet.support_lower_bounds(&bracket);
+            for (lane, (_, [a, b, c])) in tris.iter().enumerate() {
+                let q = closest_point_on_triangle(p, a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
+                let d2 = (p - q.point).length_squared();
+                let t = prune_threshold(d2, 0.0);
+                prop_assert!(bounds[lane] <= t, "lane {lane}: bound {} > threshold {t} (d² {d2})", bounds[lane]);
+                prop_assert!(support[lane] <= t, "lane {lane}: support {} > threshold {t} (d² {d2})", support[lane]);
+            }
+        }
+    }
+
+    /// For a point far above a flat patch the support bound is nearly the distance, where the
+    /// box bound is loose by the triangle's size.
+    #[test]
+    fn support_bound_is_tight_far_above_a_face() {
+        let tri = (
+            0,
+            [
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(0.0, 1.0, 0.0),
+            ],
+        );
+        let packet = TrianglePacket::new(&[tri]);
+        let p = DVec3::new(1.5, 1.5, 10.0);
+        let exact = closest_point_on_triangle(p, DVec3::ZERO, DVec3::X, DVec3::Y);
+        let d2 = (p - exact.point).length_squared();
+        let support = packet.support_lower_bounds(&PointBracket::new(p))[0] as f64;
+        assert!(
+            support > 0.97 * d2 && support <= d2 * (1.0 + 1e-6),
+            "{support} vs {d2}"
+        );
+    }
+}
