@@ -1,7 +1,7 @@
 //! Times `ClosestPointTree::closest_points` on a mesh file, one thread, the points of
 //! `bench/python_compare.py` (uniform in the mesh's box grown 10 % on each side):
 //! `cargo run --release -p hbv --example closest_point_timing -- MESH [POINTS] [ROUNDS] [LEAF_TRIANGLES]`.
-//! Prints the build time of the search tree and the median M queries/s.
+//! Prints the build time of the search tree and the median and best M queries/s.
 
 use std::time::Instant;
 
@@ -52,9 +52,10 @@ fn main() {
     times.sort_by(f64::total_cmp);
     let median = times[times.len() / 2];
     println!(
-        "{path}: {} triangles, search tree {:.1} ms, {:.3} M queries/s (median of {rounds}), checksum {checksum:.9e}",
+        "{path}: {} triangles, search tree {:.1} ms, {:.3} M queries/s (median of {rounds}), best {:.3}, checksum {checksum:.9e}",
         mesh.triangle_count(),
         build * 1e3,
-        n as f64 / median / 1e6
+        n as f64 / median / 1e6,
+        n as f64 / times[0] / 1e6
     );
 }

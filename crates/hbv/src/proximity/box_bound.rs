@@ -44,8 +44,16 @@ impl Box4 {
         max: [[f32::NEG_INFINITY; 4]; 3],
     };
 
+    /// Four slots that hold nothing: NaN bounds, so that their distance bound is NaN and fails
+    /// every `bound <= threshold` test, whatever the threshold.
+    pub const NONE: Box4 = Box4 {
+        min: [[f32::NAN; 4]; 3],
+        max: [[f32::NAN; 4]; 3],
+    };
+
     /// Conservative lower bounds of the squared distances from the point bracketed by `p` to
-    /// each box (0 inside): `Σ_axis max(min - hi, lo - max, 0)²` in f32; see the module's notes.
+    /// each box (0 inside): `Σ_axis max(min - hi, lo - max, 0)²` in f32; see the module's notes. Never
+    /// NaN for a box of finite (or infinite) bounds.
     #[inline(always)]
     pub fn distance_squared_lower_bounds(&self, p: &PointBracket) -> [f32; 4] {
         let mut d2 = [0.0f32; 4];
@@ -57,7 +65,8 @@ impl Box4 {
                 // `if` rather than `f32::max`: the same result for these operands (no NaN
                 // for finite boxes) and one `maxps` instead of a NaN-aware sequence.
                 let gap = if below > above { below } else { above };
-                let gap = if gap > 0.0 { gap } else { 0.0 };
+                // Written so that a NaN gap stays NaN (the empty slots of [`Box4::NONE`]).
+                let gap = if gap < 0.0 { 0.0 } else { gap };
                 d2[lane] += gap * gap;
             }
         }

@@ -5,7 +5,7 @@ use rayon::prelude::*;
 
 use super::box_bound::{prune_threshold, rounding_margin, PointBracket};
 use super::point_triangle::closest_point_on_triangle;
-use super::search_tree::{QuadNode, SearchTree, SearchTreeConfig};
+use super::search_tree::{SearchTree, SearchTreeConfig};
 use crate::bvh::morton::morton_code;
 use crate::bvh::BuildTree;
 use crate::geometry::Aabb;
@@ -163,40 +163,54 @@ impl ClosestPointTree {
             self.consider(p, local, &mut best);
         }
         stack.clear();
-        stack.push(Pending {
+        // The child to search next: the nearest of the last node's, taken without a trip
+        // through the stack.
+        let mut next = Some(Pending {
             bound: 0.0,
             child: 0,
             triangles: 0,
         });
-        while let Some(next) = stack.pop() {
-            if next.bound > best.threshold {
+        while let Some(pending) = next.take().or_else(|| stack.pop()) {
+            if pending.bound > best.threshold {
                 continue;
             }
-            if next.triangles > 0 {
-                self.search_leaf(p, &bracket, next, &mut best);
+            if pending.triangles > 0 {
+                self.search_leaf(p, &bracket, pending, &mut best);
                 continue;
             }
-            let node = &tree.nodes[next.child as usize];
+            let node = &tree.nodes[pending.child as usize];
             let bounds = node.bounds.distance_squared_lower_bounds(&bracket);
-            // The children within the threshold, pushed farthest first so that the nearest is
-            // searched next.
-            let first = stack.len();
+            let mut within = 0u32;
             for (k, &bound) in bounds.iter().enumerate() {
-                if bound <= best.threshold && node.child[k] != QuadNode::NONE {
-                    stack.push(Pending {
-                        bound,
-                        child: node.child[k],
-                        triangles: node.triangles[k],
-                    });
-                }
+                within |= ((bound <= best.threshold) as u32) << k;
             }
-            let pushed = &mut stack[first..];
-            for i in 1..pushed.len() {
-                let mut j = i;
-                while j > 0 && pushed[j - 1].bound < pushed[j].bound {
-                    pushed.swap(j - 1, j);
+            // The children within the threshold: the nearest is searched next, the others
+            // pushed farthest first.
+            let mut near = [Pending {
+                bound: 0.0,
+                child: 0,
+                triangles: 0,
+            }; 4];
+            let mut count = 0;
+            while within != 0 {
+                let k = within.trailing_zeros() as usize;
+                within &= within - 1;
+                let mut j = count;
+                let entry = Pending {
+                    bound: bounds[k],
+                    child: node.child[k],
+                    triangles: node.triangles[k],
+                };
+                while j > 0 && near[j - 1].bound < entry.bound {
+                    near[j] = near[j - 1];
                     j -= 1;
                 }
+                near[j] = entry;
+                count += 1;
+            }
+            if count > 0 {
+                stack.extend_from_slice(&near[..count - 1]);
+                next = Some(near[count - 1]);
             }
         }
         best.found
@@ -210,10 +224,20 @@ impl ClosestPointTree {
         let mut packet = leaf.child as usize;
         while left > 0 {
             let bounds = self.tree.packets[packet].distance_squared_lower_bounds(bracket);
-            for (lane, &bound) in bounds.iter().enumerate().take(left.min(4)) {
+            let mut within = 0u32;
+            for (lane, &bound) in bounds.iter().enumerate() {
                 // Not `bound <= threshold`: a NaN bound must not prune.
                 #[allow(clippy::neg_cmp_op_on_partial_ord)]
-                if !(bound > best.threshold) {
+                let keep = !(bound > best.threshold);
+                within |= (keep as u32) << lane;
+            }
+            // Lanes past the leaf's last triangle repeat lane 0.
+            within &= (1u32 << left.min(4)) - 1;
+            while within != 0 {
+                let lane = within.trailing_zeros() as usize;
+                within &= within - 1;
+                // The threshold may have dropped since the bounds were compared.
+                if bounds[lane] <= best.threshold || bounds[lane].is_nan() {
                     self.consider(p, (packet * 4 + lane) as u32, best);
                 }
             }

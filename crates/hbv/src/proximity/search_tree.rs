@@ -32,7 +32,8 @@ impl Default for SearchTreeConfig {
 }
 
 /// Four children: their boxes, and for each either a node (`triangles == 0`, `child` its index),
-/// a leaf (`triangles` of them in packets from `child`), or nothing (`child == NONE`).
+/// a leaf (`triangles` of them in packets from `child`), or nothing (NaN bounds, [`Box4::NONE`]:
+/// the search never enters such a slot).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub(super) struct QuadNode {
@@ -42,12 +43,9 @@ pub(super) struct QuadNode {
 }
 
 impl QuadNode {
-    /// `child` of an empty slot.
-    pub const NONE: u32 = u32::MAX;
-
     const EMPTY: QuadNode = QuadNode {
-        bounds: Box4::EMPTY,
-        child: [Self::NONE; 4],
+        bounds: Box4::NONE,
+        child: [0; 4],
         triangles: [0; 4],
     };
 
