@@ -3,7 +3,8 @@
 //! nearest-point search.
 //!
 //! The search decides in f64 ([`super::point_triangle`]), but most of its work is rejecting
-//! boxes (of nodes and of single triangles). Those tests are done in f32, four lanes at once
+//! nodes by their boxes (and triangles by the support bound of `triangle_packet`, compared with
+//! the same threshold). Those tests are done in f32, four lanes at once
 //! (plain arrays that the compiler turns into SSE: no `unsafe`), and are made *conservative*:
 //! a box is rejected only when its real distance exceeds the best f64 distance so far, so the
 //! answer is the one the f64 brute force gives.
@@ -37,13 +38,6 @@ pub(super) struct Box4 {
 }
 
 impl Box4 {
-    /// Four boxes that contain nothing: `min = +∞`, `max = -∞` (their bound is `+∞` for any
-    /// point of finite f32 bracket).
-    pub const EMPTY: Box4 = Box4 {
-        min: [[f32::INFINITY; 4]; 3],
-        max: [[f32::NEG_INFINITY; 4]; 3],
-    };
-
     /// Four slots that hold nothing: NaN bounds, so that their distance bound is NaN and fails
     /// every `bound <= threshold` test, whatever the threshold.
     pub const NONE: Box4 = Box4 {
@@ -152,7 +146,7 @@ mod tests {
 
     #[test]
     fn bounds_never_exceed_the_threshold_of_the_exact_distance() {
-        let mut boxes = Box4::EMPTY;
+        let mut boxes = Box4::NONE;
         let corners = [
             ([0.0, 0.0, 0.0], [1.0, 1.0, 1.0]),
             ([-3.5, 2.25, 1e-30], [-3.0, 2.5, 1e-29]),

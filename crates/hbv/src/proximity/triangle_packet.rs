@@ -1,13 +1,14 @@
 //! Four triangles side by side (structure of arrays), the leaf storage of the nearest-point
-//! search: one f32 pass bounds all four distances from below, and only the triangles the bound
-//! cannot reject go to the exact f64 routine.
+//! search: one f32 pass bounds all four distances from below (a support-function bound, tight for
+//! the distant points that visit the most triangles), and only the triangles the bound cannot
+//! reject go to the exact f64 routine.
 
 // The kernels loop over lanes by index, as the four-wide instructions they become do.
 #![allow(clippy::needless_range_loop)]
 
 use glam::DVec3;
 
-use super::box_bound::{Box4, PointBracket};
+use super::box_bound::PointBracket;
 
 /// Up to four triangles: `vertex[k][axis][lane]` is coordinate `axis` of vertex `k` of the
 /// triangle in `lane`, `prim[lane]` its face id. Unused lanes repeat lane 0 (the search never
@@ -53,33 +54,11 @@ impl TrianglePacket {
     }
 
     /// Conservative lower bounds of the squared distances from the bracketed point to the four
-    /// triangles: the larger of the distance to the triangle's bounding box
-    /// ([`Box4::distance_squared_lower_bounds`], boxes taken from the vertices here) and the
-    /// support bound of [`TrianglePacket::support_lower_bounds`].
+    /// triangles: [`TrianglePacket::support_lower_bounds`]. (The distance to each triangle's
+    /// bounding box was tried beside it, taking the larger: it rejected no more and cost more.)
     #[inline(always)]
     pub fn distance_squared_lower_bounds(&self, p: &PointBracket) -> [f32; 4] {
-        let mut boxes = Box4::EMPTY;
-        let v = &self.vertex;
-        for axis in 0..3 {
-            for lane in 0..4 {
-                let (a, b, c) = (v[0][axis][lane], v[1][axis][lane], v[2][axis][lane]);
-                let lo = if a < b { a } else { b };
-                let hi = if a > b { a } else { b };
-                boxes.min[axis][lane] = if lo < c { lo } else { c };
-                boxes.max[axis][lane] = if hi > c { hi } else { c };
-            }
-        }
-        let in_box = boxes.distance_squared_lower_bounds(p);
-        let support = self.support_lower_bounds(p);
-        let mut bound = [0.0f32; 4];
-        for lane in 0..4 {
-            bound[lane] = if in_box[lane] > support[lane] {
-                in_box[lane]
-            } else {
-                support[lane]
-            };
-        }
-        bound
+        self.support_lower_bounds(p)
     }
 
     /// The support-function bound: for any direction `u ≠ 0`, the triangle `T = conv(a, b, c)`
