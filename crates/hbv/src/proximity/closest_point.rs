@@ -26,7 +26,8 @@ pub struct ClosestPoint {
 }
 
 /// A BVH laid out for nearest-point queries: any [`BuildTree`] collapsed to 4-child nodes with
-/// leaves of triangle packets ([`SearchTree`]), boxes and triangles in f32 as in the mesh.
+/// leaves of four-triangle packets (module `search_tree`), boxes and triangles in f32 as in the
+/// mesh.
 ///
 /// **Search** (branch and bound, as in Larsen et al. 1999 and Ericson §6.5): keep the best
 /// squared distance `d²` so far; at a node bound the four children's box distances
