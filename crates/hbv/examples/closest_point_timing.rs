@@ -1,6 +1,6 @@
 //! Times `ClosestPointTree::closest_points` on a mesh file, one thread, the points of
 //! `bench/python_compare.py` (uniform in the mesh's box grown 10 % on each side):
-//! `cargo run --release -p hbv --example closest_point_timing -- MESH [POINTS] [ROUNDS] [LEAF_TRIANGLES]`.
+//! `cargo run --release -p hbv --example closest_point_timing -- MESH [POINTS] [ROUNDS] [LEAF_TRIANGLES] [aligned]`.
 //! Prints the build time of the search tree and the median and best M queries/s.
 
 use std::time::Instant;
@@ -15,7 +15,7 @@ fn main() {
     let mut args = std::env::args().skip(1);
     let path = args
         .next()
-        .expect("usage: closest_point_timing MESH [POINTS] [ROUNDS] [LEAF_TRIANGLES]");
+        .expect("usage: closest_point_timing MESH [POINTS] [ROUNDS] [LEAF_TRIANGLES] [aligned]");
     let n: usize = args.next().map_or(65_536, |s| s.parse().unwrap());
     let rounds: usize = args.next().map_or(5, |s| s.parse().unwrap());
     let leaf: Option<usize> = args.next().map(|s| s.parse().unwrap());
@@ -24,6 +24,7 @@ fn main() {
     let start = Instant::now();
     let config = SearchTreeConfig {
         leaf_triangles: leaf.unwrap_or(SearchTreeConfig::default().leaf_triangles),
+        rotated_frames: args.next().is_none_or(|s| s != "aligned"),
     };
     let search = ClosestPointTree::with_config(&tree, &mesh, config);
     let build = start.elapsed().as_secs_f64();

@@ -14,7 +14,7 @@ use hbv::{BruteForce, TriangleMesh};
 use proptest::prelude::*;
 
 mod common;
-use common::{closed_mesh, order, point, soup};
+use common::{closed_mesh, order, point, scale, soup};
 
 /// Query points for `mesh`: inside and around its box, exactly on vertices, on edges and on
 /// faces, far away, and non-finite.
@@ -124,10 +124,11 @@ proptest! {
         assert_closest_points_agree(&mesh, order, leaf, &points)?;
     }
 
-    /// Any leaf size of the search tree (one triangle to whole subtrees of 20).
+    /// Any leaf size of the search tree (one triangle to whole subtrees of 20), node boxes in
+    /// rotated frames or not.
     #[test]
-    fn closest_point_equals_brute_force_at_any_search_leaf_size((mesh, points) in mesh_and_points(soup()), order in order(), leaf in 1usize..9, search_leaf in 1usize..21) {
-        let config = SearchTreeConfig { leaf_triangles: search_leaf };
+    fn closest_point_equals_brute_force_at_any_search_leaf_size((mesh, points) in mesh_and_points(soup()), order in order(), leaf in 1usize..9, search_leaf in 1usize..21, rotated_frames in any::<bool>()) {
+        let config = SearchTreeConfig { leaf_triangles: search_leaf, rotated_frames };
         assert_closest_points_agree_with(&mesh, order, leaf, config, &points)?;
     }
 
@@ -135,6 +136,13 @@ proptest! {
     /// the rounding of the f32 bounds and of the f64 test matters most.
     #[test]
     fn closest_point_equals_brute_force_far_from_the_origin((mesh, points) in mesh_and_points(far_soup()), order in order(), leaf in 1usize..9) {
+        assert_closest_points_agree(&mesh, order, leaf, &points)?;
+    }
+
+    /// Tilted, gently waving sheets of many small triangles: the search tree gives their
+    /// nodes rotated frames, whose bounds must stay conservative.
+    #[test]
+    fn tilted_sheet_closest_point_equals_brute_force((mesh, points) in mesh_and_points(tilted_sheet()), order in order(), leaf in 1usize..9) {
         assert_closest_points_agree(&mesh, order, leaf, &points)?;
     }
 
@@ -153,6 +161,40 @@ proptest! {
             prop_assert_eq!(contains(&reference, *p), contains(&bvh, *p), "{:?}", p);
         }
     }
+}
+
+/// An `n × n` grid of squares (two triangles each) over the unit square, waving by `wave` along
+/// z, turned by a random rotation, scaled and moved.
+fn tilted_sheet() -> impl Strategy<Value = TriangleMesh> {
+    (
+        scale(),
+        point(1.0),
+        -3.2f32..3.2,
+        prop_oneof![Just(0.0f32), 0.0f32..0.05, 0.05f32..0.5],
+        4u32..24,
+        point(1.0),
+    )
+        .prop_map(|(s, axis, angle, wave, n, shift)| {
+            let rotation =
+                hbv::glam::Quat::from_axis_angle(axis.try_normalize().unwrap_or(Vec3::Z), angle);
+            let mut positions = Vec::new();
+            for i in 0..=n {
+                for j in 0..=n {
+                    let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+                    let z = wave * (7.0 * x).sin() * (5.0 * y).cos();
+                    positions.push((rotation * Vec3::new(x, y, z) + shift) * s);
+                }
+            }
+            let at = |i: u32, j: u32| i * (n + 1) + j;
+            let mut faces = Vec::new();
+            for i in 0..n {
+                for j in 0..n {
+                    faces.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+                    faces.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+                }
+            }
+            TriangleMesh::new(positions, faces).unwrap()
+        })
 }
 
 /// A soup of small triangles around `(1e7, -1e7, 3e6)`.
@@ -190,9 +232,12 @@ fn closest_point_through_a_node_of_nine_children() {
         .collect();
     let root = tree.push_internal(leaves);
     tree.set_root(Some(root));
-    for leaf_triangles in [1, 8, 64] {
-        let search =
-            ClosestPointTree::with_config(&tree, &mesh, SearchTreeConfig { leaf_triangles });
+    for (leaf_triangles, rotated_frames) in [(1, true), (8, false), (8, true), (64, true)] {
+        let config = SearchTreeConfig {
+            leaf_triangles,
+            rotated_frames,
+        };
+        let search = ClosestPointTree::with_config(&tree, &mesh, config);
         for i in 0..200 {
             let k = i as f32;
             let p = Vec3::new((k * 0.37).sin(), (k * 0.61).cos(), (k * 0.13).sin()) * 3.0;

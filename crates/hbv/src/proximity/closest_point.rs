@@ -4,6 +4,7 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::box_bound::{prune_threshold, rounding_margin, PointBracket};
+use super::node_frame::FRAME_SHRINK;
 use super::point_triangle::closest_point_on_triangle;
 use super::search_tree::{SearchTree, SearchTreeConfig};
 use crate::bvh::morton::morton_code;
@@ -181,7 +182,13 @@ impl ClosestPointTree {
                 continue;
             }
             let node = &tree.nodes[pending.child as usize];
-            let bounds = node.bounds.distance_squared_lower_bounds(&bracket);
+            let bounds = match &node.frame {
+                None => node.bounds.distance_squared_lower_bounds(&bracket),
+                Some(frame) => node
+                    .bounds
+                    .distance_squared_lower_bounds(&frame.bracket(&bracket))
+                    .map(|b| b * FRAME_SHRINK),
+            };
             let mut within = 0u32;
             for (k, &bound) in bounds.iter().enumerate() {
                 within |= ((bound <= best.threshold) as u32) << k;

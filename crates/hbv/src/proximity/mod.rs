@@ -9,6 +9,7 @@
 mod box_bound;
 pub mod closest_point;
 pub mod inside;
+mod node_frame;
 pub mod point_triangle;
 mod search_tree;
 mod triangle_packet;
