@@ -241,11 +241,13 @@ impl Slot {
 
 /// Nodes with at most this many triangles below are tried for a rotated frame: near the leaves,
 /// where the surface is nearly flat (and the build enumerates each triangle a few times only).
-const FRAME_MAX_TRIANGLES: u32 = 256;
+/// 64, 256, 1024 and 4096 measured: 1024 is as fast as 4096 (igea 0.51 M queries/s against 0.38
+/// with no frames, 0.47 at 256) and builds faster.
+const FRAME_MAX_TRIANGLES: u32 = 1024;
 
 /// A node's boxes are rotated only when that shrinks their summed area below this share of the
-/// axis-aligned boxes'.
-const ROTATED_AREA_GAIN: f32 = 0.8;
+/// axis-aligned boxes' (0.8, 0.95 and 1 measured alike, 0.95 a hair ahead).
+const ROTATED_AREA_GAIN: f32 = 0.95;
 
 /// The slots' boxes in a frame facing the mean normal of their triangles, if that makes them
 /// smaller (their summed area below [`ROTATED_AREA_GAIN`] of the axis-aligned `aligned`'s), for
