@@ -32,7 +32,8 @@ pub struct ClosestPoint {
 ///
 /// **Search** (branch and bound, as in Larsen et al. 1999 and Ericson §6.5): keep the best
 /// squared distance `d²` so far; at a node bound the four children's box distances
-/// `Σ_axis max(min - p, 0, p - max)²` from below, and visit those not farther than `d²`, nearest
+/// `Σ_axis max(min - p, 0, p - max)²` from below (near the leaves, boxes in a frame facing the
+/// surface patch, module `node_frame`), and visit those not farther than `d²`, nearest
 /// first; in a leaf, bound each triangle from below by a support-function bound (the distance to
 /// the triangle's supporting half-space facing the point), and decide the survivors with
 /// [`closest_point_on_triangle`] (Ericson §5.1.5) in f64. The bounds are f32, four at a

@@ -8,7 +8,9 @@
 //! child with at most [`SearchTreeConfig::leaf_triangles`] triangles below it becomes one leaf
 //! (its whole subtree, flattened), since testing a few triangles in packets of four costs less
 //! than visiting nodes. A build node with more than four children (n-ary builders) is split into
-//! four groups along its longest axis, each group a node of its own.
+//! four groups along its longest axis, each group a node of its own. Near the leaves (at most
+//! [`FRAME_MAX_TRIANGLES`] below), a node whose triangles face one way gets its four boxes in a
+//! [`NodeFrame`] facing their mean normal, when that makes the boxes smaller.
 
 use glam::{DVec3, Vec3};
 
