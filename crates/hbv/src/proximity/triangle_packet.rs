@@ -8,7 +8,7 @@
 
 use glam::DVec3;
 
-use super::box_bound::PointBracket;
+use super::box_bound::{Box4, PointBracket};
 
 /// Up to four triangles: `vertex[k][axis][lane]` is coordinate `axis` of vertex `k` of the
 /// triangle in `lane`, `prim[lane]` its face id. Unused lanes repeat lane 0 (the search never
@@ -18,6 +18,9 @@ use super::box_bound::PointBracket;
 pub(super) struct TrianglePacket {
     pub vertex: [[[f32; 4]; 3]; 3],
     pub prim: [u32; 4],
+    /// Some triangle lies in a plane of constant x, y or z: its box is flat, and the box bound
+    /// is then tighter than the support bound (walls and floors of modelled scenes).
+    pub axis_aligned: bool,
 }
 
 impl TrianglePacket {
@@ -26,6 +29,9 @@ impl TrianglePacket {
         let mut packet = TrianglePacket {
             vertex: [[[0.0; 4]; 3]; 3],
             prim: [0; 4],
+            axis_aligned: triangles
+                .iter()
+                .any(|(_, [a, b, c])| (0..3).any(|i| a[i] == b[i] && b[i] == c[i])),
         };
         for lane in 0..4 {
             let (prim, v) = triangles[if lane < triangles.len() { lane } else { 0 }];
@@ -54,11 +60,37 @@ impl TrianglePacket {
     }
 
     /// Conservative lower bounds of the squared distances from the bracketed point to the four
-    /// triangles: [`TrianglePacket::support_lower_bounds`]. (The distance to each triangle's
-    /// bounding box was tried beside it, taking the larger: it rejected no more and cost more.)
+    /// triangles: [`TrianglePacket::support_lower_bounds`], and for a packet with an
+    /// axis-aligned triangle the larger of that and the distance to each triangle's bounding box
+    /// ([`Box4::distance_squared_lower_bounds`]). (The box bound on every packet rejected no more
+    /// on scanned meshes and cost 3–4 %; on the Cornell box's walls it gains 12–17 %.)
     #[inline(always)]
     pub fn distance_squared_lower_bounds(&self, p: &PointBracket) -> [f32; 4] {
-        self.support_lower_bounds(p)
+        let support = self.support_lower_bounds(p);
+        if !self.axis_aligned {
+            return support;
+        }
+        let mut boxes = Box4::NONE;
+        let v = &self.vertex;
+        for axis in 0..3 {
+            for lane in 0..4 {
+                let (a, b, c) = (v[0][axis][lane], v[1][axis][lane], v[2][axis][lane]);
+                let lo = if a < b { a } else { b };
+                let hi = if a > b { a } else { b };
+                boxes.min[axis][lane] = if lo < c { lo } else { c };
+                boxes.max[axis][lane] = if hi > c { hi } else { c };
+            }
+        }
+        let in_box = boxes.distance_squared_lower_bounds(p);
+        let mut bound = [0.0f32; 4];
+        for lane in 0..4 {
+            bound[lane] = if in_box[lane] > support[lane] {
+                in_box[lane]
+            } else {
+                support[lane]
+            };
+        }
+        bound
     }
 
     /// The support-function bound: for any direction `u ≠ 0`, the triangle `T = conv(a, b, c)`
@@ -135,19 +167,21 @@ mod tests {
         (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0).prop_map(move |(x, y, z)| Vec3::new(x, y, z) * s)
     }
 
-    /// Four triangles of one size around one centre: tiny to huge, near and far from the origin.
+    /// Four triangles of one size around one centre: tiny to huge, near and far from the origin;
+    /// some lying in a plane of constant x, y or z (the packets that use the box bound too).
     fn packet() -> impl Strategy<Value = (Vec3, f32, Vec<[Vec3; 3]>)> {
         let centre = prop_oneof![Just(0.0f32), Just(1e3), Just(1e7), Just(1e18)];
         let size = prop_oneof![Just(1e-4f32), Just(1.0), Just(1e3), Just(1e6)];
         (centre, size).prop_flat_map(|(c, s)| {
-            (
-                vec3(c),
-                Just(s),
-                prop::collection::vec(
-                    (vec3(s), vec3(s), vec3(s)).prop_map(|(a, b, c)| [a, b, c]),
-                    4,
-                ),
-            )
+            let flat = prop_oneof![Just(None), (0usize..3).prop_map(Some)];
+            let triangle = (vec3(s), vec3(s), vec3(s), flat).prop_map(|(a, mut b, mut c, flat)| {
+                if let Some(axis) = flat {
+                    b[axis] = a[axis];
+                    c[axis] = a[axis];
+                }
+                [a, b, c]
+            });
+            (vec3(c), Just(s), prop::collection::vec(triangle, 4))
         })
     }
 
