@@ -125,3 +125,34 @@ def test_closest_point_on_a_sphere():
     got = bvh.closest_point(points, threads=2)
     r = np.linalg.norm(points - [1.0, 0.0, -1.0], axis=1)
     assert np.abs(got["distance"] - np.abs(r - 2.0)).max() < 0.01
+
+
+def test_closest_point_is_the_same_on_any_tree_and_thread_count():
+    """Exact answers do not depend on the tree, the thread count or the batch's order: clustered
+    points (neighbours in the batch seed each other) and points a hair off the surface, on an
+    icosphere, equal across builders, leaf sizes and threads, and the float64 brute force on a
+    sample."""
+    v, f = icosphere(3, radius=1.5, center=(0.25, -0.5, 2.0))
+    mesh = hbv.Mesh(v, f)
+    rng = np.random.default_rng(8)
+    centre = np.array([0.25, -0.5, 2.0])
+    directions = rng.normal(size=(1500, 3))
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    near_surface = centre + directions * (1.5 + rng.uniform(-1e-4, 1e-4, (1500, 1)))
+    cluster = rng.normal(size=(1500, 3)) * 1e-3 + [1.0, 0.5, 2.5]
+    spread = rng.uniform(-3, 3, (1500, 3)) + centre
+    points = np.r_[near_surface, cluster, spread]
+    want = hbv.BVH(mesh).closest_point(points, threads=1)
+    for bvh, threads in [
+        (hbv.BVH(mesh), None),
+        (hbv.BVH(mesh), 3),
+        (hbv.BVH(mesh, builder="insertion", leaf_size=1), None),
+        (hbv.BVH(mesh, leaf_size=32), 2),
+    ]:
+        got = bvh.closest_point(points, threads=threads)
+        for key in ("point", "distance", "prim", "u", "v"):
+            np.testing.assert_array_equal(got[key], want[key], err_msg=key)
+    tris = triangles_of(mesh.vertices, f)
+    for i in rng.choice(len(points), 100, replace=False):
+        dist = np.linalg.norm(closest_on_triangles(points[i], tris) - points[i], axis=1)
+        assert abs(want["distance"][i] - dist.min()) <= 1e-12 * max(1.0, dist.min()), i

@@ -5,14 +5,16 @@ use hbv::bvh::build::{
     BinnedSahBuilder, BinnedSahConfig, Builder, InsertionBuilder, InsertionConfig,
 };
 use hbv::bvh::layout::Wide8Layout;
+use hbv::bvh::BuildTree;
+use hbv::geometry::Aabb;
 use hbv::glam::{DVec3, Vec3};
 use hbv::mesh::procedural::{icosphere, torus};
-use hbv::proximity::{closest_point_brute_force, contains, ClosestPointTree};
+use hbv::proximity::{closest_point_brute_force, contains, ClosestPointTree, SearchTreeConfig};
 use hbv::{BruteForce, TriangleMesh};
 use proptest::prelude::*;
 
 mod common;
-use common::{closed_mesh, order, point, soup};
+use common::{closed_mesh, order, point, scale, soup};
 
 /// Query points for `mesh`: inside and around its box, exactly on vertices, on edges and on
 /// faces, far away, and non-finite.
@@ -22,6 +24,7 @@ fn points_for(mesh: &TriangleMesh) -> impl Strategy<Value = Vec<Vec3>> {
     let n = mesh.triangle_count();
     let positions = mesh.positions().to_vec();
     let m = mesh.clone();
+    let m2 = mesh.clone();
     let around = move || {
         (-0.5f32..1.5, -0.5f32..1.5, -0.5f32..1.5)
             .prop_map(move |(x, y, z)| lo + (hi - lo) * Vec3::new(x, y, z))
@@ -33,11 +36,33 @@ fn points_for(mesh: &TriangleMesh) -> impl Strategy<Value = Vec<Vec3>> {
             let t = m.triangle(i);
             t.p0 + (t.p1 - t.p0) * k
         }),
+        // A hair off a face: the search's rounding margins decide here.
+        1 => (0..n, 0.0f32..1.0, 0.0f32..1.0, -1e-3f32..1e-3).prop_map(move |(i, a, b, off)| {
+            let t = m2.triangle(i);
+            let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
+            let n = (t.p1 - t.p0).cross(t.p2 - t.p0).normalize_or_zero();
+            let size = (t.p1 - t.p0).length().max((t.p2 - t.p0).length());
+            t.p0 + (t.p1 - t.p0) * a + (t.p2 - t.p0) * b + n * (off * size)
+        }),
         1 => point(1e9),
         1 => Just(Vec3::new(f32::NAN, 0.0, 0.0)),
         1 => Just(Vec3::new(0.0, f32::INFINITY, 0.0)),
     ];
-    prop::collection::vec(one, 1..48)
+    // Half the time, a tight cluster around one of them as well: neighbours in the batch's
+    // Morton order, each seeded with the previous one's triangle.
+    let ext = (hi - lo).max_element();
+    (
+        prop::collection::vec(one, 1..48),
+        any::<bool>(),
+        prop::collection::vec(point(1.0), 16),
+    )
+        .prop_map(move |(mut points, cluster, offsets)| {
+            if cluster {
+                let centre = points[0];
+                points.extend(offsets.iter().map(|o| centre + *o * (1e-3 * ext)));
+            }
+            points
+        })
 }
 
 fn mesh_and_points(
@@ -55,16 +80,26 @@ fn assert_closest_points_agree(
     leaf: usize,
     points: &[Vec3],
 ) -> Result<(), TestCaseError> {
+    assert_closest_points_agree_with(mesh, order, leaf, SearchTreeConfig::default(), points)
+}
+
+fn assert_closest_points_agree_with(
+    mesh: &TriangleMesh,
+    order: hbv::bvh::build::InsertionOrder,
+    leaf: usize,
+    config: SearchTreeConfig,
+    points: &[Vec3],
+) -> Result<(), TestCaseError> {
     let insertion = InsertionBuilder::new(InsertionConfig {
         order,
         max_leaf_size: leaf,
     })
     .build(mesh);
-    let mut config = BinnedSahConfig::default();
-    config.leaf.max_leaf_size = leaf;
-    let sah = BinnedSahBuilder::new(config).build(mesh);
+    let mut sah_config = BinnedSahConfig::default();
+    sah_config.leaf.max_leaf_size = leaf;
+    let sah = BinnedSahBuilder::new(sah_config).build(mesh);
     for (name, tree) in [("insertion", insertion), ("binned-sah", sah)] {
-        let search = ClosestPointTree::new(&tree, mesh);
+        let search = ClosestPointTree::with_config(&tree, mesh, config);
         for (i, p) in points.iter().enumerate() {
             let want = closest_point_brute_force(mesh, p.as_dvec3());
             let got = search.closest_point(*p);
@@ -89,6 +124,28 @@ proptest! {
         assert_closest_points_agree(&mesh, order, leaf, &points)?;
     }
 
+    /// Any leaf size of the search tree (one triangle to whole subtrees of 20), node boxes in
+    /// rotated frames or not.
+    #[test]
+    fn closest_point_equals_brute_force_at_any_search_leaf_size((mesh, points) in mesh_and_points(soup()), order in order(), leaf in 1usize..9, search_leaf in 1usize..21, rotated_frames in any::<bool>()) {
+        let config = SearchTreeConfig { leaf_triangles: search_leaf, rotated_frames };
+        assert_closest_points_agree_with(&mesh, order, leaf, config, &points)?;
+    }
+
+    /// Small triangles far from the origin (coordinates around 10⁷, where an f32 step is 1):
+    /// the rounding of the f32 bounds and of the f64 test matters most.
+    #[test]
+    fn closest_point_equals_brute_force_far_from_the_origin((mesh, points) in mesh_and_points(far_soup()), order in order(), leaf in 1usize..9) {
+        assert_closest_points_agree(&mesh, order, leaf, &points)?;
+    }
+
+    /// Tilted, gently waving sheets of many small triangles: the search tree gives their
+    /// nodes rotated frames, whose bounds must stay conservative.
+    #[test]
+    fn tilted_sheet_closest_point_equals_brute_force((mesh, points) in mesh_and_points(tilted_sheet()), order in order(), leaf in 1usize..9) {
+        assert_closest_points_agree(&mesh, order, leaf, &points)?;
+    }
+
     #[test]
     fn closed_mesh_closest_point_equals_brute_force((mesh, points) in mesh_and_points(closed_mesh()), order in order(), leaf in 1usize..9) {
         assert_closest_points_agree(&mesh, order, leaf, &points)?;
@@ -102,6 +159,93 @@ proptest! {
         let reference = BruteForce::new(&mesh);
         for p in &points {
             prop_assert_eq!(contains(&reference, *p), contains(&bvh, *p), "{:?}", p);
+        }
+    }
+}
+
+/// An `n × n` grid of squares (two triangles each) over the unit square, waving by `wave` along
+/// z, turned by a random rotation, scaled and moved.
+fn tilted_sheet() -> impl Strategy<Value = TriangleMesh> {
+    (
+        scale(),
+        point(1.0),
+        -3.2f32..3.2,
+        prop_oneof![Just(0.0f32), 0.0f32..0.05, 0.05f32..0.5],
+        4u32..24,
+        point(1.0),
+    )
+        .prop_map(|(s, axis, angle, wave, n, shift)| {
+            let rotation =
+                hbv::glam::Quat::from_axis_angle(axis.try_normalize().unwrap_or(Vec3::Z), angle);
+            let mut positions = Vec::new();
+            for i in 0..=n {
+                for j in 0..=n {
+                    let (x, y) = (i as f32 / n as f32, j as f32 / n as f32);
+                    let z = wave * (7.0 * x).sin() * (5.0 * y).cos();
+                    positions.push((rotation * Vec3::new(x, y, z) + shift) * s);
+                }
+            }
+            let at = |i: u32, j: u32| i * (n + 1) + j;
+            let mut faces = Vec::new();
+            for i in 0..n {
+                for j in 0..n {
+                    faces.push([at(i, j), at(i + 1, j), at(i + 1, j + 1)]);
+                    faces.push([at(i, j), at(i + 1, j + 1), at(i, j + 1)]);
+                }
+            }
+            TriangleMesh::new(positions, faces).unwrap()
+        })
+}
+
+/// A soup of small triangles around `(1e7, -1e7, 3e6)`.
+fn far_soup() -> impl Strategy<Value = TriangleMesh> {
+    let corner = Vec3::new(1e7, -1e7, 3e6);
+    let tri = (point(400.0), point(30.0), point(30.0)).prop_map(move |(a, b, c)| {
+        let a = corner + a;
+        [a, a + b, a + c]
+    });
+    prop::collection::vec(tri, 1..40).prop_map(|tris| {
+        let positions = tris.iter().flatten().copied().collect();
+        let faces = (0..tris.len() as u32)
+            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+            .collect();
+        TriangleMesh::new(positions, faces).unwrap()
+    })
+}
+
+/// A hand-made tree whose root has nine children (n-ary builders make such nodes): the search
+/// tree groups them in fours and answers as the brute force does.
+#[test]
+fn closest_point_through_a_node_of_nine_children() {
+    let mesh = icosphere(Vec3::new(0.25, 0.5, -1.0), 1.5, 2);
+    let n = mesh.triangle_count() as u32;
+    let mut tree = BuildTree::new();
+    let leaves: Vec<_> = (0..9)
+        .map(|k| {
+            let prims: Vec<u32> = (k * n / 9..(k + 1) * n / 9).collect();
+            let bounds = prims.iter().fold(Aabb::EMPTY, |b, &p| {
+                let t = mesh.triangle(p as usize);
+                b.union_point(t.p0).union_point(t.p1).union_point(t.p2)
+            });
+            tree.push_leaf(prims, bounds)
+        })
+        .collect();
+    let root = tree.push_internal(leaves);
+    tree.set_root(Some(root));
+    for (leaf_triangles, rotated_frames) in [(1, true), (8, false), (8, true), (64, true)] {
+        let config = SearchTreeConfig {
+            leaf_triangles,
+            rotated_frames,
+        };
+        let search = ClosestPointTree::with_config(&tree, &mesh, config);
+        for i in 0..200 {
+            let k = i as f32;
+            let p = Vec3::new((k * 0.37).sin(), (k * 0.61).cos(), (k * 0.13).sin()) * 3.0;
+            assert_eq!(
+                search.closest_point(p),
+                closest_point_brute_force(&mesh, p.as_dvec3()),
+                "{p:?}"
+            );
         }
     }
 }

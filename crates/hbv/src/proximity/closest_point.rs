@@ -3,9 +3,12 @@
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
+use super::box_bound::{prune_threshold, rounding_margin, PointBracket};
+use super::node_frame::FRAME_SHRINK;
 use super::point_triangle::closest_point_on_triangle;
+use super::search_tree::{SearchTree, SearchTreeConfig};
 use crate::bvh::morton::morton_code;
-use crate::bvh::{BuildTree, NodeContent, NodeId};
+use crate::bvh::BuildTree;
 use crate::geometry::Aabb;
 use crate::mesh::TriangleMesh;
 
@@ -23,109 +26,57 @@ pub struct ClosestPoint {
     pub v: f64,
 }
 
-/// A node of the search tree, 32 bytes (two to a cache line): its box in f32 (the tree's own
-/// box, so converting it to f64 for the distance is exact), and its children (`first..first +
-/// count` in `nodes`) or, when [`SearchNode::LEAF`] is set in `count`, its triangles.
-#[derive(Clone, Copy, Debug)]
-#[repr(C, align(32))]
-struct SearchNode {
-    min: Vec3,
-    max: Vec3,
-    first: u32,
-    count: u32,
-}
-
-impl SearchNode {
-    /// Bit of `count` that marks a leaf.
-    const LEAF: u32 = 1 << 31;
-
-    #[inline]
-    fn is_leaf(&self) -> bool {
-        self.count & Self::LEAF != 0
-    }
-
-    /// Its children's or triangles' indices.
-    #[inline]
-    fn range(&self) -> std::ops::Range<u32> {
-        self.first..self.first + (self.count & !Self::LEAF)
-    }
-}
-
-/// A BVH laid out for nearest-point queries: any [`BuildTree`]'s nodes, children side by side,
-/// boxes and triangles kept in f32 and converted to f64 where used (f32 to f64 is exact, so the
-/// answers are those of the f64 brute force over the same f32 vertices).
+/// A BVH laid out for nearest-point queries: any [`BuildTree`] collapsed to 4-child nodes with
+/// leaves of four-triangle packets (module `search_tree`), boxes and triangles in f32 as in the
+/// mesh.
 ///
 /// **Search** (branch and bound, as in Larsen et al. 1999 and Ericson §6.5): keep the best
-/// squared distance `d²` so far; at a node compute each child box's squared distance
-/// `Σ_axis max(min - p, 0, p - max)²` and visit children nearest first; a box farther than `d²`
-/// cannot hold a nearer triangle and is pruned. Each triangle is decided by
-/// [`closest_point_on_triangle`] (Ericson §5.1.5). Degenerate triangles are left out, as in every
-/// tree (they have no face to be nearest to, and their edges are other triangles' edges on
-/// meshes that matter).
+/// squared distance `d²` so far; at a node bound the four children's box distances
+/// `Σ_axis max(min - p, 0, p - max)²` from below (near the leaves, boxes in a frame facing the
+/// surface patch, module `node_frame`), and visit those not farther than `d²`, nearest
+/// first; in a leaf, bound each triangle from below by a support-function bound (the distance to
+/// the triangle's supporting half-space facing the point), and decide the survivors with
+/// [`closest_point_on_triangle`] (Ericson §5.1.5) in f64. The bounds are f32, four at a
+/// time, and conservative ([`super::box_bound`]): nothing that the f64 brute force would pick is
+/// ever pruned, so the answers are the brute force's, ties included (smallest face id).
+/// Degenerate triangles are left out, as in every tree (they have no face to be nearest to, and
+/// their edges are other triangles' edges on meshes that matter).
 #[derive(Clone, Debug)]
 pub struct ClosestPointTree {
-    nodes: Vec<SearchNode>,
-    /// `(face id, vertices)` in leaf order; f32 as in the mesh (half the memory of f64; the
-    /// conversion to f64 for the search is exact).
-    triangles: Vec<(u32, [Vec3; 3])>,
+    tree: SearchTree,
 }
 
-/// Relative slack of the box pruning test: a box is pruned only when its distance exceeds the
-/// best by more than rounding (both are rounded f64 values of real distances that may be
-/// equal), so that no triangle that the brute force would pick is ever skipped.
-const PRUNE_SLACK: f64 = 1e-9;
+/// One pending child of the search: its lower bound, and a node index (`triangles == 0`) or a
+/// leaf's first packet and triangle count.
+#[derive(Clone, Copy, Debug)]
+struct Pending {
+    bound: f32,
+    child: u32,
+    triangles: u32,
+}
+
+/// The best triangle so far of one search.
+struct Best {
+    found: Option<(ClosestPoint, u32)>,
+    d2: f64,
+    /// [`prune_threshold`] of `d2`.
+    threshold: f32,
+    /// The rounding margin of [`prune_threshold`] for this query.
+    delta: f64,
+}
 
 impl ClosestPointTree {
-    /// Lays out `tree` (built over `mesh` by any builder) for nearest-point search.
+    /// Lays out `tree` (built over `mesh` by any builder) for nearest-point search, with
+    /// [`SearchTreeConfig::default`].
     pub fn new(tree: &BuildTree, mesh: &TriangleMesh) -> Self {
-        let mut search = Self {
-            nodes: Vec::new(),
-            triangles: Vec::new(),
-        };
-        let Some(root) = tree.root() else {
-            return search;
-        };
-        // Breadth first: each node's children are pushed together, so they sit side by side.
-        let root_node = search.node_for(tree, mesh, root);
-        search.nodes.push(root_node);
-        let mut queue: std::collections::VecDeque<(NodeId, usize)> = [(root, 0)].into();
-        while let Some((id, slot)) = queue.pop_front() {
-            if let NodeContent::Internal(children) = &tree.node(id).content {
-                search.nodes[slot].first = search.nodes.len() as u32;
-                search.nodes[slot].count = children.len() as u32;
-                for &c in children {
-                    let node = search.node_for(tree, mesh, c);
-                    queue.push_back((c, search.nodes.len()));
-                    search.nodes.push(node);
-                }
-            }
-        }
-        search
+        Self::with_config(tree, mesh, SearchTreeConfig::default())
     }
 
-    /// The search node for `id`; a leaf's triangles are appended here, an internal node's
-    /// children are filled in by the caller.
-    fn node_for(&mut self, tree: &BuildTree, mesh: &TriangleMesh, id: NodeId) -> SearchNode {
-        let node = tree.node(id);
-        let mut search = SearchNode {
-            min: node.bounds.min,
-            max: node.bounds.max,
-            first: 0,
-            count: 0,
-        };
-        if let NodeContent::Leaf(prims) = &node.content {
-            search.first = self.triangles.len() as u32;
-            for &p in prims {
-                let t = mesh.triangle(p as usize);
-                if t.is_degenerate() {
-                    continue;
-                }
-                let v = [t.p0, t.p1, t.p2];
-                self.triangles.push((p, v));
-            }
-            search.count = (self.triangles.len() as u32 - search.first) | SearchNode::LEAF;
+    /// [`ClosestPointTree::new`] with the leaf size of `config`.
+    pub fn with_config(tree: &BuildTree, mesh: &TriangleMesh, config: SearchTreeConfig) -> Self {
+        Self {
+            tree: SearchTree::new(tree, mesh, config),
         }
-        search
     }
 
     /// The nearest surface point to `point`; `None` for an empty tree or a point with a NaN or
@@ -136,7 +87,7 @@ impl ClosestPointTree {
 
     /// [`ClosestPointTree::closest_point`] for an f64 query point.
     pub fn closest_point_f64(&self, p: DVec3) -> Option<ClosestPoint> {
-        self.search(p, None).map(|(c, _)| c)
+        self.search(p, None, &mut Vec::new()).map(|(c, _)| c)
     }
 
     /// The nearest surface point to each of `points` (as [`ClosestPointTree::closest_point_f64`],
@@ -172,9 +123,10 @@ impl ClosestPointTree {
             .par_chunks(Self::RUN)
             .flat_map_iter(|run| {
                 let mut seed = None;
+                let mut stack = Vec::with_capacity(64);
                 run.iter()
                     .map(|&(_, i)| {
-                        let found = self.search(points[i as usize], seed);
+                        let found = self.search(points[i as usize], seed, &mut stack);
                         seed = found.map(|(_, local)| local).or(seed);
                         (i, found.map(|(c, _)| c))
                     })
@@ -191,71 +143,147 @@ impl ClosestPointTree {
     /// Points per run of [`ClosestPointTree::closest_points`]: one rayon task, seeded in turn.
     pub const RUN: usize = 256;
 
-    /// The branch-and-bound search, starting from triangle `seed` (an index into
-    /// `self.triangles`) as the best so far when given; returns the answer and its triangle's
-    /// index into `self.triangles`.
-    fn search(&self, p: DVec3, seed: Option<u32>) -> Option<(ClosestPoint, u32)> {
-        if self.nodes.is_empty() || !p.is_finite() {
+    /// The branch-and-bound search, starting from triangle `seed` (`4 × packet + lane`) as the
+    /// best so far when given; returns the answer and its triangle's `4 × packet + lane`.
+    /// `stack` is scratch space, reused between searches.
+    fn search(
+        &self,
+        p: DVec3,
+        seed: Option<u32>,
+        stack: &mut Vec<Pending>,
+    ) -> Option<(ClosestPoint, u32)> {
+        let tree = &self.tree;
+        if tree.nodes.is_empty() || !p.is_finite() {
             return None;
         }
-        let mut best: Option<(ClosestPoint, u32)> = None;
-        let mut best_d2 = f64::INFINITY;
-        let mut consider = |local: u32, best_d2: &mut f64| {
-            let (prim, [a, b, c]) = &self.triangles[local as usize];
-            let q = closest_point_on_triangle(p, a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
-            let d2 = (p - q.point).length_squared();
-            let closer =
-                d2 < *best_d2 || (d2 == *best_d2 && best.is_some_and(|(b, _)| *prim < b.prim));
-            if closer {
-                *best_d2 = d2;
-                let found = ClosestPoint {
-                    point: q.point,
-                    distance: d2.sqrt(),
-                    prim: *prim,
-                    u: q.u,
-                    v: q.v,
-                };
-                best = Some((found, local));
-            }
+        let bracket = PointBracket::new(p);
+        let mut best = Best {
+            found: None,
+            d2: f64::INFINITY,
+            threshold: f32::INFINITY,
+            delta: rounding_margin(p, tree.mesh_scale),
         };
         if let Some(local) = seed {
-            consider(local, &mut best_d2);
+            self.consider(p, local, &mut best);
         }
-        let mut stack: Vec<(u32, f64)> = Vec::with_capacity(64);
-        stack.push((0, box_distance_squared(&self.nodes[0], p)));
-        while let Some((index, d2)) = stack.pop() {
-            if d2 * (1.0 - PRUNE_SLACK) > best_d2 {
+        stack.clear();
+        // The child to search next: the nearest of the last node's, taken without a trip
+        // through the stack.
+        let mut next = Some(Pending {
+            bound: 0.0,
+            child: 0,
+            triangles: 0,
+        });
+        while let Some(pending) = next.take().or_else(|| stack.pop()) {
+            if pending.bound > best.threshold {
                 continue;
             }
-            let node = self.nodes[index as usize];
-            let range = node.range();
-            if node.is_leaf() {
-                for local in range {
-                    consider(local, &mut best_d2);
-                }
+            if pending.triangles > 0 {
+                self.search_leaf(p, &bracket, pending, &mut best);
                 continue;
             }
-            // Push the children farthest first, so that the nearest is searched next.
-            let first = stack.len();
-            for child in range {
-                let d2 = box_distance_squared(&self.nodes[child as usize], p);
-                if d2 * (1.0 - PRUNE_SLACK) <= best_d2 {
-                    stack.push((child, d2));
-                }
+            let node = &tree.nodes[pending.child as usize];
+            let bounds = match &node.frame {
+                None => node.bounds.distance_squared_lower_bounds(&bracket),
+                Some(frame) => node
+                    .bounds
+                    .distance_squared_lower_bounds(&frame.bracket(&bracket))
+                    .map(|b| b * FRAME_SHRINK),
+            };
+            let mut within = 0u32;
+            for (k, &bound) in bounds.iter().enumerate() {
+                within |= ((bound <= best.threshold) as u32) << k;
             }
-            stack[first..].sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
+            // The children within the threshold: the nearest is searched next, the others
+            // pushed farthest first.
+            let mut near = [Pending {
+                bound: 0.0,
+                child: 0,
+                triangles: 0,
+            }; 4];
+            let mut count = 0;
+            while within != 0 {
+                let k = within.trailing_zeros() as usize;
+                within &= within - 1;
+                let mut j = count;
+                let entry = Pending {
+                    bound: bounds[k],
+                    child: node.child[k],
+                    triangles: node.triangles[k],
+                };
+                while j > 0 && near[j - 1].bound < entry.bound {
+                    near[j] = near[j - 1];
+                    j -= 1;
+                }
+                near[j] = entry;
+                count += 1;
+            }
+            if count > 0 {
+                // One push each: `extend_from_slice` calls `memmove`, a tenth of the time here.
+                for &entry in &near[..count - 1] {
+                    stack.push(entry);
+                }
+                next = Some(near[count - 1]);
+            }
         }
-        best
+        best.found
     }
-}
 
-/// Squared distance from `p` to the node's box (0 inside): `Σ max(min - p, 0, p - max)²`.
-#[inline]
-fn box_distance_squared(node: &SearchNode, p: DVec3) -> f64 {
-    let d = (node.min.as_dvec3() - p)
-        .max(p - node.max.as_dvec3())
-        .max(DVec3::ZERO);
-    d.length_squared()
+    /// Tests the triangles of one leaf: each packet's four box bounds first, the exact routine
+    /// for those within the threshold.
+    #[inline]
+    fn search_leaf(&self, p: DVec3, bracket: &PointBracket, leaf: Pending, best: &mut Best) {
+        let mut left = leaf.triangles as usize;
+        let mut packet = leaf.child as usize;
+        while left > 0 {
+            let bounds = self.tree.packets[packet].distance_squared_lower_bounds(bracket);
+            let mut within = 0u32;
+            for (lane, &bound) in bounds.iter().enumerate() {
+                // Not `bound <= threshold`: a NaN bound must not prune.
+                #[allow(clippy::neg_cmp_op_on_partial_ord)]
+                let keep = !(bound > best.threshold);
+                within |= (keep as u32) << lane;
+            }
+            // Lanes past the leaf's last triangle repeat lane 0.
+            within &= (1u32 << left.min(4)) - 1;
+            while within != 0 {
+                let lane = within.trailing_zeros() as usize;
+                within &= within - 1;
+                // The threshold may have dropped since the bounds were compared.
+                if bounds[lane] <= best.threshold || bounds[lane].is_nan() {
+                    self.consider(p, (packet * 4 + lane) as u32, best);
+                }
+            }
+            left = left.saturating_sub(4);
+            packet += 1;
+        }
+    }
+
+    /// Decides triangle `local` (`4 × packet + lane`) in f64 and keeps it if it is nearer than
+    /// the best, or as near with a smaller face id.
+    #[inline]
+    fn consider(&self, p: DVec3, local: u32, best: &mut Best) {
+        let packet = &self.tree.packets[local as usize / 4];
+        let lane = local as usize % 4;
+        let [a, b, c] = packet.triangle(lane);
+        let prim = packet.prim[lane];
+        let q = closest_point_on_triangle(p, a, b, c);
+        let d2 = (p - q.point).length_squared();
+        let closer =
+            d2 < best.d2 || (d2 == best.d2 && best.found.is_some_and(|(b, _)| prim < b.prim));
+        if closer {
+            best.d2 = d2;
+            best.threshold = prune_threshold(d2, best.delta);
+            let found = ClosestPoint {
+                point: q.point,
+                distance: d2.sqrt(),
+                prim,
+                u: q.u,
+                v: q.v,
+            };
+            best.found = Some((found, local));
+        }
+    }
 }
 
 /// The nearest surface point by testing every non-degenerate triangle in f64: the reference of
