@@ -122,11 +122,20 @@ def inside_face(found, margin=1e-6):
 
 
 def time_interleaved(contenders, repeat):
-    """{name: median seconds}: one untimed call each, then `repeat` interleaved rounds."""
+    """{name: median seconds}: one untimed call each, then `repeat` interleaved rounds.
+
+    An all-threads contender (`*_all`) is called once, untimed, right before each timed call:
+    its pool's workers go to sleep while the others run, and waking them (here, a virtual
+    machine's idle second core) took up to 5 ms, half of a 10 ms batch: hbv's all-threads call
+    on camera rays ran in 9 ms when its workers were awake and in 13-17 ms after 50 ms to 1 s of
+    other work. Warmed, each measures the speed of repeated calls.
+    """
     results = {name: fn() for name, fn in contenders.items()}
     times = {name: [] for name in contenders}
     for _ in range(repeat):
         for name, fn in contenders.items():
+            if name.endswith("_all"):
+                fn()
             start = time.perf_counter()
             fn()
             times[name].append(time.perf_counter() - start)
