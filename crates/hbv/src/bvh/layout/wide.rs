@@ -172,10 +172,9 @@ impl<const W: usize> WideLayout<W> {
         counter: &mut C,
         mut visit_leaf: impl FnMut(usize, usize, &mut PreparedRay, &mut C) -> bool,
     ) {
-        let mut traversal = Traversal::idle();
-        if !traversal.restart(self, ray, counter) {
+        let Some(mut traversal) = Traversal::start(self, ray, counter) else {
             return;
-        }
+        };
         while let Step::Continue =
             traversal.step::<W, C, K, NEAREST_FIRST, false>(self, counter, &mut visit_leaf)
         {

@@ -27,6 +27,7 @@ pub(crate) struct BoxRay {
 }
 
 impl BoxRay {
+    #[inline]
     pub fn new(ray: &PreparedRay) -> Self {
         let near_side = ray.negative.map(usize::from);
         Self {

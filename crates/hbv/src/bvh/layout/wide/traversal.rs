@@ -32,7 +32,7 @@ pub(super) enum Step {
 }
 
 impl Traversal {
-    /// A state holding no ray, to be set up with [`Traversal::restart`].
+    /// A state holding no ray, to be set up with [`Traversal::restart`] (the batches' slots).
     pub fn idle() -> Self {
         let ray = PreparedRay::new(&Ray::new(glam::Vec3::ZERO, glam::Vec3::X));
         Self {
@@ -45,11 +45,29 @@ impl Traversal {
         }
     }
 
-    /// Sets the state up, in place, for `ray` (valid: checked by the caller) through `layout`.
-    /// Returns `false`, and leaves nothing to do, when the ray cannot meet the tree: the tree is
-    /// empty or the ray misses the root's box. That scalar test of the root box rejects most
-    /// rays that miss everything (half or more of the camera rays of a scene without walls) at
-    /// the cheapest point.
+    /// The traversal of `ray` (valid: checked by the caller) through `layout`, or `None` when
+    /// the ray cannot meet the tree: the tree is empty or the ray misses the root's box. That
+    /// scalar test of the root box rejects most rays that miss everything (half or more of the
+    /// camera rays of a scene without walls) at the cheapest point.
+    #[inline(always)]
+    pub fn start<const W: usize, C: Counter>(
+        layout: &WideLayout<W>,
+        ray: &Ray,
+        counter: &mut C,
+    ) -> Option<Self> {
+        let (ray, root) = Self::enter(layout, ray, counter)?;
+        Some(Self {
+            box_ray: BoxRay::new(&ray),
+            box_tmin: ray.box_tmin(),
+            box_tmax: ray.box_tmax(),
+            ray,
+            current: root,
+            stack: TraversalStack::new(),
+        })
+    }
+
+    /// [`Traversal::start`] in place, reusing this state (and its stack's memory); `false`, and
+    /// nothing to do, when the ray cannot meet the tree.
     #[inline(always)]
     pub fn restart<const W: usize, C: Counter>(
         &mut self,
@@ -57,22 +75,31 @@ impl Traversal {
         ray: &Ray,
         counter: &mut C,
     ) -> bool {
-        let Some((root, root_bounds)) = layout.root else {
+        let Some((ray, root)) = Self::enter(layout, ray, counter) else {
             return false;
         };
-        let mut prepared = PreparedRay::new(ray);
-        prepared.bound_errors_within(&root_bounds);
-        counter.boxes_tested(1);
-        if !root_bounds.hit_by(&prepared) {
-            return false;
-        }
-        self.box_ray = BoxRay::new(&prepared);
-        self.box_tmin = prepared.box_tmin();
-        self.box_tmax = prepared.box_tmax();
-        self.ray = prepared;
+        self.box_ray = BoxRay::new(&ray);
+        self.box_tmin = ray.box_tmin();
+        self.box_tmax = ray.box_tmax();
+        self.ray = ray;
         self.current = root;
         self.stack.clear();
         true
+    }
+
+    /// The prepared ray, with its box-test margin for the tree, and the root, if the ray meets
+    /// the root's box.
+    #[inline(always)]
+    fn enter<const W: usize, C: Counter>(
+        layout: &WideLayout<W>,
+        ray: &Ray,
+        counter: &mut C,
+    ) -> Option<(PreparedRay, u32)> {
+        let (root, root_bounds) = layout.root?;
+        let mut prepared = PreparedRay::new(ray);
+        prepared.bound_errors_within(&root_bounds);
+        counter.boxes_tested(1);
+        root_bounds.hit_by(&prepared).then_some((prepared, root))
     }
 
     /// Visits the current node or leaf and chooses what comes next.
