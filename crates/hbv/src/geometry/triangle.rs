@@ -258,10 +258,8 @@ impl Triangle {
 /// round once; `|S| ≤ 1` on the dominant axis), which the products multiply by the other
 /// coordinates; their own rounding adds at most `3 ε M (…) / 2`. The factor 8 leaves a margin of
 /// about 2 over that sum. The bound depends only on the edge's two vertices, so both triangles
-/// of a shared edge agree on whether its f32 sign is certain. [`TrianglePacket::candidates`]
-/// computes the same bound with the same operations.
-///
-/// [`TrianglePacket::candidates`]: crate::bvh::layout
+/// of a shared edge agree on whether its f32 sign is certain. The wide layouts' packet test
+/// (`bvh/layout/wide/triangle_packet.rs`) computes the same bound with the same operations.
 #[inline]
 pub(crate) fn edge_error(max_component: f32, px: f32, py: f32, qx: f32, qy: f32) -> f32 {
     (EDGE_ERROR * max_component) * (((px.abs() + py.abs()) + qx.abs()) + qy.abs())
