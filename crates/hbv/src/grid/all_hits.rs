@@ -7,7 +7,7 @@ use crate::query::Hit;
 
 impl AllHits for UniformGrid {
     /// Walks every cell the ray crosses between `tmin` and `tmax` (widened by
-    /// [`UniformGrid::t_margin`], as the closest-hit walk), testing each listed triangle once
+    /// a margin (`UniformGrid::t_margin`), as the closest-hit walk), testing each listed triangle once
     /// (a final dedup after sorting catches what the mailbox misses) and keeping every hit; then sorts by
     /// `(t, prim)`. A triangle hit within `[tmin, tmax]` is listed in a cell the walk visits (the
     /// closest-hit walk's argument, with no cell skipped), so the list is brute force's.

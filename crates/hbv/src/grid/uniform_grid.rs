@@ -38,7 +38,7 @@ impl Default for GridConfig {
 /// [`Triangle::intersect`], ties by the same rule). Three margins make the walk conservative:
 /// - cells list every triangle within [`GridShape::pad`] of them (f64 decisions), which covers
 ///   the rounding of the f64 walk;
-/// - the walk starts [`UniformGrid::t_margin`] before `tmin` and runs as far past `tmax`;
+/// - the walk starts a margin (`t_margin`) before `tmin` and runs as far past `tmax`;
 /// - the closest-hit walk stops after a cell only if the best hit is *strictly* nearer than the
 ///   cell's exit minus that margin, which covers the rounding of the triangle test's `t` (a
 ///   triangle whose true crossing lies beyond the exit cannot then compute a `t` as near, nor an

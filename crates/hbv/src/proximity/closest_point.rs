@@ -37,7 +37,7 @@ pub struct ClosestPoint {
 /// first; in a leaf, bound each triangle from below by a support-function bound (the distance to
 /// the triangle's supporting half-space facing the point), and decide the survivors with
 /// [`closest_point_on_triangle`] (Ericson §5.1.5) in f64. The bounds are f32, four at a
-/// time, and conservative ([`super::box_bound`]): nothing that the f64 brute force would pick is
+/// time, and conservative (`proximity/box_bound.rs`): nothing that the f64 brute force would pick is
 /// ever pruned, so the answers are the brute force's, ties included (smallest face id).
 /// Degenerate triangles are left out, as in every tree (they have no face to be nearest to, and
 /// their edges are other triangles' edges on meshes that matter).

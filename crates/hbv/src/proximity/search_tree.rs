@@ -21,7 +21,7 @@ use crate::bvh::{BuildTree, NodeContent, NodeId};
 use crate::geometry::Aabb;
 use crate::mesh::TriangleMesh;
 
-/// Knobs of [`SearchTree::new`].
+/// Knobs of the search tree built from a `BuildTree`.
 #[derive(Clone, Copy, Debug)]
 pub struct SearchTreeConfig {
     /// A subtree with at most this many triangles becomes one leaf. Default 16 (four packets;

@@ -1,4 +1,4 @@
-//! Builders: each turns a mesh into a [`BuildTree`](crate::bvh::BuildTree), knowing nothing of
+//! Builders: each turns a mesh into a [`BuildTree`], knowing nothing of
 //! how the tree will be laid out or traversed.
 
 mod binned_sah;

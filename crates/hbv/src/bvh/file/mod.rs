@@ -31,7 +31,7 @@ pub struct BvhFile {
 }
 
 impl BvhFile {
-    /// Loads and checks the file at `path`; files of [`read::MAP_AT_LEAST`] bytes or more are
+    /// Loads and checks the file at `path`; files of `read::MAP_AT_LEAST` (1 MiB) bytes or more are
     /// memory-mapped rather than read.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, BvhFileError> {
         read::load(path.as_ref())
