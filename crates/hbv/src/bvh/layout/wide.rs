@@ -237,21 +237,21 @@ impl<const W: usize> WideLayout<W> {
             stack.push_if((children[far], entry[far]), rest != 0);
             return Some(children[near]);
         }
+        let item = |lane: usize| (children[lane], entry[lane]);
+        let exchange = |x: &mut (u32, f32), y: &mut (u32, f32)| {
+            let swap = x.1 < y.1;
+            let (p, q) = (*x, *y);
+            *x = if swap { q } else { p };
+            *y = if swap { p } else { q };
+        };
         let rest2 = rest & (rest - 1);
         if rest2 & (rest2 - 1) == 0 {
             // Three: a sorting network of three compare-exchanges, as selects.
-            let item = |lane: usize| (children[lane], entry[lane]);
             let (mut a, mut b, mut c) = (
                 item(first),
                 item(rest.trailing_zeros() as usize),
                 item(rest2.trailing_zeros() as usize),
             );
-            let exchange = |x: &mut (u32, f32), y: &mut (u32, f32)| {
-                let swap = x.1 < y.1;
-                let (p, q) = (*x, *y);
-                *x = if swap { q } else { p };
-                *y = if swap { p } else { q };
-            };
             exchange(&mut a, &mut b);
             exchange(&mut b, &mut c);
             exchange(&mut a, &mut b);
@@ -262,7 +262,27 @@ impl<const W: usize> WideLayout<W> {
             stack.push(b);
             return Some(c.0);
         }
-        // Four or more: insertion sort by decreasing entry distance (at most 8 entries).
+        let rest3 = rest2 & (rest2 - 1);
+        if rest3 & (rest3 - 1) == 0 {
+            // Four: five compare-exchanges.
+            let (mut a, mut b, mut c, mut d) = (
+                item(first),
+                item(rest.trailing_zeros() as usize),
+                item(rest2.trailing_zeros() as usize),
+                item(rest3.trailing_zeros() as usize),
+            );
+            exchange(&mut a, &mut b);
+            exchange(&mut c, &mut d);
+            exchange(&mut a, &mut c);
+            exchange(&mut b, &mut d);
+            exchange(&mut b, &mut c);
+            for x in [a, b, c] {
+                self.prefetch(x.0);
+                stack.push(x);
+            }
+            return Some(d.0);
+        }
+        // Five or more: insertion sort by decreasing entry distance (at most 8 entries).
         let mut order = [(0u32, 0.0f32); W];
         let mut n = 0;
         for lane in Lanes(mask) {
