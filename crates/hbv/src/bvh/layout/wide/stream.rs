@@ -106,3 +106,59 @@ impl<const W: usize> WideLayout<W> {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::build::{Builder, InsertionBuilder};
+    use crate::mesh::procedural::torus;
+    use crate::query::TraversalKernel;
+    use glam::Vec3;
+    use proptest::prelude::*;
+
+    /// The interleaved batch answers exactly what single rays answer, with interleaving forced
+    /// on (small layouts answer batches ray by ray), for both widths.
+    fn check<const W: usize>(rays: &[Ray]) -> Result<(), TestCaseError> {
+        let mesh = torus(Vec3::new(0.1, -0.2, 0.3), 1.5, 0.5, 24, 12);
+        let tree = InsertionBuilder::default().build(&mesh);
+        let mut layout = WideLayout::<W>::new(&tree, &mesh);
+        layout.interleave = true;
+        let mut hits = vec![None; rays.len()];
+        let mut occluders = vec![None; rays.len()];
+        layout.closest_hits(rays, &mut hits);
+        layout.occluders(rays, &mut occluders);
+        for (i, ray) in rays.iter().enumerate() {
+            let valid = ray.is_valid();
+            let single = valid
+                .then(|| layout.closest_hit(ray, &mut NoCount))
+                .flatten();
+            prop_assert_eq!(hits[i], single, "closest hit, ray {}", i);
+            let blocked = valid && layout.any_hit(ray, &mut NoCount);
+            prop_assert_eq!(occluders[i].is_some(), blocked, "any hit, ray {}", i);
+        }
+        Ok(())
+    }
+
+    fn rays() -> impl Strategy<Value = Vec<Ray>> {
+        let c = || prop_oneof![Just(0.0f32), Just(-1.0), Just(1.0), -3.0f32..3.0];
+        let ray = (
+            (c(), c(), c()),
+            (c(), c(), c()),
+            prop_oneof![Just(f32::INFINITY), 0.1f32..5.0],
+        )
+            .prop_map(|((ox, oy, oz), (dx, dy, dz), tmax)| {
+                Ray::new(Vec3::new(ox, oy, oz), Vec3::new(dx, dy, dz)).with_interval(0.0, tmax)
+            });
+        prop::collection::vec(ray, 0..70)
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(200))]
+
+        #[test]
+        fn interleaved_batches_answer_like_single_rays(rays in rays()) {
+            check::<4>(&rays)?;
+            check::<8>(&rays)?;
+        }
+    }
+}
