@@ -218,18 +218,20 @@ impl TrianglePacket {
             let ev = bound(_mm_max_ps(mc, ma), cx, cy, ax, ay);
             let ew = bound(_mm_max_ps(ma, mb), ax, ay, bx, by);
             let neg = |e: __m128| _mm_xor_ps(e, sign_bit);
-            let positive = _mm_or_ps(
-                _mm_or_ps(_mm_cmpgt_ps(u, eu), _mm_cmpgt_ps(v, ev)),
-                _mm_cmpgt_ps(w, ew),
-            );
-            let negative = _mm_or_ps(
-                _mm_or_ps(_mm_cmplt_ps(u, neg(eu)), _mm_cmplt_ps(v, neg(ev))),
+            // Each edge function beyond its bound, above and below; `|E| > e` is one or the
+            // other (NaN is neither, as in the scalar test).
+            let (pu, pv, pw) = (_mm_cmpgt_ps(u, eu), _mm_cmpgt_ps(v, ev), _mm_cmpgt_ps(w, ew));
+            let (nu, nv, nw) = (
+                _mm_cmplt_ps(u, neg(eu)),
+                _mm_cmplt_ps(v, neg(ev)),
                 _mm_cmplt_ps(w, neg(ew)),
             );
+            let positive = _mm_or_ps(_mm_or_ps(pu, pv), pw);
+            let negative = _mm_or_ps(_mm_or_ps(nu, nv), nw);
             let rejected = _mm_movemask_ps(_mm_and_ps(positive, negative)) as u32;
             let certain = _mm_and_ps(
-                _mm_and_ps(_mm_cmpgt_ps(abs(u), eu), _mm_cmpgt_ps(abs(v), ev)),
-                _mm_cmpgt_ps(abs(w), ew),
+                _mm_and_ps(_mm_or_ps(pu, nu), _mm_or_ps(pv, nv)),
+                _mm_or_ps(pw, nw),
             );
             let certain = _mm_movemask_ps(certain) as u32;
             let uncertain = !rejected & !certain & 0xf;
