@@ -220,7 +220,11 @@ impl TrianglePacket {
             let neg = |e: __m128| _mm_xor_ps(e, sign_bit);
             // Each edge function beyond its bound, above and below; `|E| > e` is one or the
             // other (NaN is neither, as in the scalar test).
-            let (pu, pv, pw) = (_mm_cmpgt_ps(u, eu), _mm_cmpgt_ps(v, ev), _mm_cmpgt_ps(w, ew));
+            let (pu, pv, pw) = (
+                _mm_cmpgt_ps(u, eu),
+                _mm_cmpgt_ps(v, ev),
+                _mm_cmpgt_ps(w, ew),
+            );
             let (nu, nv, nw) = (
                 _mm_cmplt_ps(u, neg(eu)),
                 _mm_cmplt_ps(v, neg(ev)),
