@@ -196,25 +196,44 @@ pub trait TraversalKernel: Send + Sync {
     /// invalid (they miss). The answers are [`TraversalKernel::closest_hit`]'s; kernels that can
     /// trace several rays at once faster (interleaved, to hide memory latency) override it.
     fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
-            *hit = if ray.is_valid() {
-                self.closest_hit(ray, &mut NoCount)
-            } else {
-                None
-            };
-        }
+        closest_hits_one_by_one(self, rays, hits);
     }
 
     /// Any-hit answers of a batch of independent rays into `occluders` (same length): a blocking
     /// triangle, or `None`. Rays may be invalid (they miss). As [`TraversalKernel::closest_hits`].
     fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
-        for (ray, occluder) in rays.iter().zip(occluders.iter_mut()) {
-            *occluder = if ray.is_valid() {
-                self.any_hit_prim(ray, &mut NoCount)
-            } else {
-                None
-            };
-        }
+        occluders_one_by_one(self, rays, occluders);
+    }
+}
+
+/// [`TraversalKernel::closest_hits`] one ray at a time: the default, and the choice of kernels
+/// that interleave only some batches.
+pub(crate) fn closest_hits_one_by_one<K: TraversalKernel + ?Sized>(
+    kernel: &K,
+    rays: &[Ray],
+    hits: &mut [Option<Hit>],
+) {
+    for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
+        *hit = if ray.is_valid() {
+            kernel.closest_hit(ray, &mut NoCount)
+        } else {
+            None
+        };
+    }
+}
+
+/// [`TraversalKernel::occluders`] one ray at a time; see [`closest_hits_one_by_one`].
+pub(crate) fn occluders_one_by_one<K: TraversalKernel + ?Sized>(
+    kernel: &K,
+    rays: &[Ray],
+    occluders: &mut [Option<u32>],
+) {
+    for (ray, occluder) in rays.iter().zip(occluders.iter_mut()) {
+        *occluder = if ray.is_valid() {
+            kernel.any_hit_prim(ray, &mut NoCount)
+        } else {
+            None
+        };
     }
 }
 

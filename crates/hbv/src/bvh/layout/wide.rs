@@ -15,7 +15,10 @@ use super::wide_kernels::{BoxRay, LaneBoxes, Lanes};
 use crate::bvh::tree::{BuildTree, NodeContent, NodeId};
 use crate::geometry::{Aabb, PreparedRay, Ray};
 use crate::mesh::TriangleMesh;
-use crate::query::{record_closer_hit, record_hit, Hit, TraversalKernel};
+use crate::query::{
+    closest_hits_one_by_one, occluders_one_by_one, record_closer_hit, record_hit, Hit,
+    TraversalKernel,
+};
 use crate::stats::{Counter, NoCount};
 
 /// Bit 31 of a child reference: the child is a leaf.
@@ -631,14 +634,7 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
 
     fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         if !self.interleave {
-            for (ray, hit) in rays.iter().zip(hits) {
-                *hit = if ray.is_valid() {
-                    self.closest_hit(ray, &mut NoCount)
-                } else {
-                    None
-                };
-            }
-            return;
+            return closest_hits_one_by_one(self, rays, hits);
         }
         #[cfg(target_arch = "x86_64")]
         if W == 8 && self.use_avx {
@@ -650,14 +646,7 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
 
     fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
         if !self.interleave {
-            for (ray, occluder) in rays.iter().zip(occluders) {
-                *occluder = if ray.is_valid() {
-                    self.any_hit_prim(ray, &mut NoCount)
-                } else {
-                    None
-                };
-            }
-            return;
+            return occluders_one_by_one(self, rays, occluders);
         }
         #[cfg(target_arch = "x86_64")]
         if W == 8 && self.use_avx {
