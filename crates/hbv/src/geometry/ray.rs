@@ -141,7 +141,19 @@ impl PreparedRay {
     /// (2^-18 is 32 ulps of 1: several times the triangle test's error bound). The margin only
     /// lets the traversal visit a little more; the triangle tests keep the exact interval.
     pub fn bound_errors_within(&mut self, scene: &Aabb) {
-        let scene_size = scene.min.abs().max(scene.max.abs()).max_element();
+        self.bound_errors_within_size(Self::scene_size(scene));
+    }
+
+    /// The largest coordinate magnitude of `scene`, `max |scene|` of
+    /// [`PreparedRay::bound_errors_within`]: computed once per tree by layouts that trace many
+    /// rays through it.
+    pub fn scene_size(scene: &Aabb) -> f32 {
+        scene.min.abs().max(scene.max.abs()).max_element()
+    }
+
+    /// [`PreparedRay::bound_errors_within`] for a scene of [`PreparedRay::scene_size`] `scene_size`.
+    #[inline]
+    pub fn bound_errors_within_size(&mut self, scene_size: f32) {
         let origin_size = self.origin.abs().max_element();
         // `shear.z` is 1 / d_kz.
         let margin = Self::BOX_SLACK * (origin_size + scene_size) * self.shear.z.abs();

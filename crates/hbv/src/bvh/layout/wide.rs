@@ -57,8 +57,9 @@ struct WideNode<const W: usize> {
 pub struct WideLayout<const W: usize> {
     nodes: Vec<WideNode<W>>,
     packets: Vec<TrianglePacket>,
-    /// The root reference (a node, or a leaf for trees of one leaf), with the root's box.
-    root: Option<(u32, Aabb)>,
+    /// The root reference (a node, or a leaf for trees of one leaf), with the root's box and
+    /// its [`PreparedRay::scene_size`].
+    root: Option<(u32, Aabb, f32)>,
     use_avx: bool,
     /// Whether traversals prefetch the nodes they are about to visit: only for layouts larger
     /// than [`PREFETCH_ABOVE_BYTES`], which the caches nearest the core cannot hold.
@@ -102,7 +103,8 @@ impl<const W: usize> WideLayout<W> {
         };
         if let Some(root) = binary.root() {
             let reference = layout.emit(&binary, &counts, mesh, root);
-            layout.root = Some((reference, binary.node(root).bounds));
+            let bounds = binary.node(root).bounds;
+            layout.root = Some((reference, bounds, PreparedRay::scene_size(&bounds)));
         }
         layout.prefetch = layout.memory_bytes() > PREFETCH_ABOVE_BYTES;
         layout.interleave = layout.memory_bytes() > INTERLEAVE_ABOVE_BYTES;

@@ -164,7 +164,7 @@ impl<const W: usize> WideLayout<W> {
     ) {
         debug_assert!(rays.len() <= PACKET_SIZE && rays.len() == hits.len());
         hits.fill(None);
-        let Some((root, root_bounds)) = self.root else {
+        let Some((root, root_bounds, _)) = self.root else {
             return;
         };
         let unused = PreparedRay::new(&Ray::new(glam::Vec3::ZERO, glam::Vec3::X));

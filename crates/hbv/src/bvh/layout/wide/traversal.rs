@@ -95,9 +95,9 @@ impl Traversal {
         ray: &Ray,
         counter: &mut C,
     ) -> Option<(PreparedRay, u32)> {
-        let (root, root_bounds) = layout.root?;
+        let (root, root_bounds, scene_size) = layout.root?;
         let mut prepared = PreparedRay::new(ray);
-        prepared.bound_errors_within(&root_bounds);
+        prepared.bound_errors_within_size(scene_size);
         counter.boxes_tested(1);
         root_bounds.hit_by(&prepared).then_some((prepared, root))
     }
