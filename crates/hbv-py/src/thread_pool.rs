@@ -1,6 +1,9 @@
 //! `threads=`: where a query runs. `None`: the global rayon pool (every core); `1`: the calling
 //! thread itself, with no hand-off to a pool thread (on a busy machine each hand-off waits for
-//! the scheduler, which can cost more than a small batch); `n`: a local pool of `n` threads.
+//! the scheduler, which can cost more than a small batch); `n`: a pool of `n` threads, started on
+//! first use and kept for later calls.
+
+use std::sync::{Arc, Mutex};
 
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
@@ -18,14 +21,28 @@ pub fn run_on_threads<T: Send>(
         Some(0) => Err(PyValueError::new_err(
             "threads: expected a positive number of threads, or None for all cores",
         )),
-        Some(n) => {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .map_err(|e| PyRuntimeError::new_err(format!("cannot start {n} threads: {e}")))?;
-            Ok(pool.install(work))
-        }
+        Some(n) => Ok(pool_of(n)?.install(work)),
     }
+}
+
+/// The pool of `n` threads, started on first use and kept: a query with `threads=n` would
+/// otherwise start and stop `n` threads on every call (hundreds of microseconds, more than a
+/// small batch takes).
+fn pool_of(n: usize) -> PyResult<Arc<rayon::ThreadPool>> {
+    static POOLS: Mutex<Vec<(usize, Arc<rayon::ThreadPool>)>> = Mutex::new(Vec::new());
+    let mut pools = POOLS
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    if let Some((_, pool)) = pools.iter().find(|(threads, _)| *threads == n) {
+        return Ok(Arc::clone(pool));
+    }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .map_err(|e| PyRuntimeError::new_err(format!("cannot start {n} threads: {e}")))?;
+    let pool = Arc::new(pool);
+    pools.push((n, Arc::clone(&pool)));
+    Ok(pool)
 }
 
 /// Output columns of a query, one row per ray or point, that can be cut in two at a row.
