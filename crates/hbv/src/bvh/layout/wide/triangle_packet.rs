@@ -301,25 +301,10 @@ impl TrianglePacket {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bvh::layout::wide_kernels::tests::ray_strategy;
     use crate::geometry::Ray;
     use glam::Vec3;
     use proptest::prelude::*;
-
-    fn ray_strategy() -> impl Strategy<Value = Ray> {
-        let c = || prop_oneof![Just(0.0f32), Just(-0.0), Just(1.0), Just(0.5), -2.0f32..2.0];
-        (
-            (c(), c(), c()),
-            (c(), c(), c()),
-            prop_oneof![Just(0.0f32), Just(1e-3), 0.0f32..1.0],
-            prop_oneof![Just(f32::INFINITY), 0.5f32..4.0],
-        )
-            .prop_filter("valid", |((_, _, _), (x, y, z), _, _)| {
-                Vec3::new(*x, *y, *z) != Vec3::ZERO
-            })
-            .prop_map(|((ox, oy, oz), (dx, dy, dz), tmin, tmax)| {
-                Ray::new(Vec3::new(ox, oy, oz), Vec3::new(dx, dy, dz)).with_interval(tmin, tmax)
-            })
-    }
 
     /// Each lane's verdict against [`Triangle::intersect`], and the SIMD test against its twin.
     fn check(packet: &TrianglePacket, ray: &Ray) -> Result<(), TestCaseError> {
