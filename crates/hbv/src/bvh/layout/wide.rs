@@ -532,18 +532,19 @@ impl<const W: usize> WideLayout<W> {
         ray: &PreparedRay,
         counter: &mut C,
     ) -> Option<u32> {
-        self.packets[first..first + count]
-            .iter()
-            .find_map(|packet| {
-                counter.triangles_tested(4);
-                let test = packet.test(ray);
-                if test.hit != 0 {
-                    return Some(packet.ids[test.hit.trailing_zeros() as usize]);
+        for packet in &self.packets[first..first + count] {
+            counter.triangles_tested(4);
+            let test = packet.test(ray);
+            if test.hit != 0 {
+                return Some(packet.ids[test.hit.trailing_zeros() as usize]);
+            }
+            for lane in Lanes(test.undecided) {
+                if packet.triangle(lane).intersect(ray).is_some() {
+                    return Some(packet.ids[lane]);
                 }
-                Lanes(test.undecided)
-                    .find(|&lane| packet.triangle(lane).intersect(ray).is_some())
-                    .map(|lane| packet.ids[lane])
-            })
+            }
+        }
+        None
     }
 
     /// The closest-hit traversal compiled with AVX. Call only when the CPU has AVX.
