@@ -1,9 +1,9 @@
 #!/usr/bin/env bash
 # Instructions and (modelled) branch mispredictions per ray of one `hbv trace`, counted by
 # valgrind's callgrind: deterministic, so two builds can be compared on a busy machine where
-# timings are not. Counts everything inside the timed query (the rayon job that `hbv trace`
-# runs on its one worker thread: ray checks, setup, traversal, triangle tests, the answers'
-# collection), not loading, building or writing.
+# timings are not. Counts everything inside the query `hbv trace` times (the batch call, or
+# each single-ray call with --one-by-one: ray checks, setup, traversal, triangle tests), not
+# loading, building or writing.
 #
 #   bench/count_instructions.sh [HBV] MESH RAYS.npz [trace options...]
 #   bench/count_instructions.sh target/release/hbv ../shared/scenes/teapot.ply rays/diffuse.npz --occluded
@@ -23,7 +23,9 @@ mesh=$1 rays=$2; shift 2
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 valgrind --tool=callgrind --branch-sim=yes \
-    --toggle-collect='*StackJob*as rayon_core::job::Job>::execute*' \
+    --toggle-collect='*Accelerator::intersect_batch' --toggle-collect='*Accelerator::occluded_batch' \
+    --toggle-collect='*Accelerator>::intersect' --toggle-collect='*Accelerator>::occluded' \
+    --toggle-collect='*Accelerator>::intersect_coherent' \
     --callgrind-out-file="$work/cg.out" \
     "$hbv" trace "$mesh" --rays "$rays" --out "$work/hits.npz" --threads 1 --json "$@" \
     >"$work/trace.json" 2>/dev/null
