@@ -69,22 +69,9 @@ impl<const W: usize> WideLayout<W> {
         let mut answer: [Option<A>; STREAMS] = std::array::from_fn(|_| None);
         let mut index = [0usize; STREAMS];
         let mut next = 0;
-        // Sets slot `i` up for the next ray that can meet the tree; the rays skipped (invalid,
-        // or missing the root's box) keep their miss. `false` when no ray is left.
-        let mut start = |traversal: &mut Traversal, index: &mut usize| {
-            while next < rays.len() {
-                let ray = &rays[next];
-                next += 1;
-                if ray.is_valid() && traversal.restart(self, ray, &mut NoCount) {
-                    *index = next - 1;
-                    return true;
-                }
-            }
-            false
-        };
         let mut busy = 0u32;
         for i in 0..STREAMS {
-            if start(&mut traversals[i], &mut index[i]) {
+            if self.start_next(rays, &mut next, &mut traversals[i], &mut index[i]) {
                 busy |= 1 << i;
             }
         }
@@ -98,12 +85,38 @@ impl<const W: usize> WideLayout<W> {
                 );
                 if let Step::Done = step {
                     answers[index[i]] = found.take();
-                    if !start(&mut traversals[i], &mut index[i]) {
+                    if !self.start_next(rays, &mut next, &mut traversals[i], &mut index[i]) {
                         busy &= !(1 << i);
                     }
                 }
             }
         }
+    }
+}
+
+impl<const W: usize> WideLayout<W> {
+    /// Sets a slot's `traversal` up for the next ray, from `rays[*next]` on, that can meet the
+    /// tree, and its `index`; the rays skipped (invalid, or missing the root's box) keep their
+    /// miss. `false` when no ray is left. (A function rather than a closure so that it is
+    /// inlined into the kernel compiled with AVX: left out of line, the setup of each ray took
+    /// 300 instructions.)
+    #[inline(always)]
+    fn start_next(
+        &self,
+        rays: &[Ray],
+        next: &mut usize,
+        traversal: &mut Traversal,
+        index: &mut usize,
+    ) -> bool {
+        while *next < rays.len() {
+            let ray = &rays[*next];
+            *next += 1;
+            if ray.is_valid() && traversal.restart(self, ray, &mut NoCount) {
+                *index = *next - 1;
+                return true;
+            }
+        }
+        false
     }
 }
 
