@@ -6,5 +6,5 @@ mod triangle;
 
 pub use aabb::Aabb;
 pub use ray::{PreparedRay, Ray};
-pub(crate) use triangle::{edge_error, EDGE_ERROR};
+pub(crate) use triangle::{shared_edge_error, SHARED_EDGE_ERROR};
 pub use triangle::{Triangle, TriangleHit};

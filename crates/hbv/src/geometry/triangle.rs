@@ -259,14 +259,46 @@ impl Triangle {
 /// coordinates; their own rounding adds at most `3 ε M (…) / 2`. The factor 8 leaves a margin of
 /// about 2 over that sum. The bound depends only on the edge's two vertices, so both triangles
 /// of a shared edge agree on whether its f32 sign is certain. The wide layouts' packet test
-/// (`bvh/layout/wide/triangle_packet.rs`) computes the same bound with the same operations.
+/// (`bvh/layout/wide/triangle_packet.rs`) uses one larger bound for all three edges,
+/// [`shared_edge_error`]: what it finds certain, this bound finds certain too.
 #[inline]
-pub(crate) fn edge_error(max_component: f32, px: f32, py: f32, qx: f32, qy: f32) -> f32 {
+fn edge_error(max_component: f32, px: f32, py: f32, qx: f32, qy: f32) -> f32 {
     (EDGE_ERROR * max_component) * (((px.abs() + py.abs()) + qx.abs()) + qy.abs())
 }
 
 /// `8 ε` of [`edge_error`].
-pub(crate) const EDGE_ERROR: f32 = 8.0 * f32::EPSILON;
+const EDGE_ERROR: f32 = 8.0 * f32::EPSILON;
+
+/// One bound for all three edge functions of a triangle, at least each [`edge_error`]: the
+/// cheaper bound of the wide layouts' packet test, which leaves a few more lanes to
+/// [`Triangle::intersect`] and decides the others exactly as it does.
+///
+/// ```text
+///   e = max(2^-126, (5 · 8 ε · M) · P),   M = max |vertex − origin| over the three vertices,
+///                                         P = max |sheared x|, |sheared y| over the three vertices
+/// ```
+///
+/// Each edge's sum of four magnitudes is at most `4 P` and its `max_component` at most `M`, so
+/// in exact arithmetic `e ≥ 5/4 · eE`; the factor 5/4 covers the rounding of both bounds
+/// (`5 (1 − ε)² > 4 (1 + ε)⁵`). Where `eE` is below the smallest normal float (`2^-126`), the
+/// floor covers it; where it is above, the edge's coordinates are large enough (`m ≳ 2^-55`)
+/// that every product and sum above is a normal float and the relative error analysis holds.
+/// A NaN `P` (an overflowing shear) propagates: nothing is then certain.
+///
+/// `max_sheared` and the floor are taken as SSE's `maxps` does (the second operand when either
+/// is NaN), so that the SIMD test and its scalar twin agree bit for bit.
+#[inline]
+pub(crate) fn shared_edge_error(max_component: f32, max_sheared: f32) -> f32 {
+    let e = (SHARED_EDGE_ERROR * max_component) * max_sheared;
+    if f32::MIN_POSITIVE > e {
+        f32::MIN_POSITIVE
+    } else {
+        e
+    }
+}
+
+/// `5 · 8 ε` of [`shared_edge_error`] (exact: `5 · 2^-20`).
+pub(crate) const SHARED_EDGE_ERROR: f32 = 5.0 * EDGE_ERROR;
 
 #[cfg(test)]
 mod tests {

@@ -10,7 +10,7 @@
 // The scalar twin indexes vertices, axes and lanes with counters; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
-use crate::geometry::{edge_error, PreparedRay, Triangle, TriangleHit, EDGE_ERROR};
+use crate::geometry::{shared_edge_error, PreparedRay, Triangle, TriangleHit, SHARED_EDGE_ERROR};
 
 /// Four triangles, structure of arrays: `vertices[vertex][axis][lane]`, with their face ids.
 /// A leaf whose count is not a multiple of 4 repeats its last triangle in the spare lanes.
@@ -89,12 +89,14 @@ impl TrianglePacket {
     /// Tests the four triangles against the ray: [`Triangle::intersect`]'s f32 path, four lanes
     /// at once (SSE on x86_64, the scalar twin elsewhere).
     ///
-    /// Per lane, with the sheared vertex coordinates `A, B, C` and edge functions `U, V, W` and
-    /// their error bounds `eU, eV, eW` of [`Triangle::intersect`]:
+    /// Per lane, with the sheared vertex coordinates `A, B, C` and edge functions `U, V, W` of
+    /// [`Triangle::intersect`], and one error bound `e` for the three edge functions
+    /// ([`crate::geometry::shared_edge_error`]: at least each edge's own bound, so every lane
+    /// decided here is decided alike by [`Triangle::intersect`]):
     ///
     /// ```text
     ///   miss       if some edge function is certainly positive and another certainly negative
-    ///   undecided  if some |E| ≤ eE                                   (near an edge: f64 decides)
+    ///   undecided  if some |E| ≤ e                                    (near an edge: f64 decides)
     ///   t = (U Az + V Bz + W Cz) / det,   det = U + V + W
     ///   undecided  if |t| ≤ n and tmin ≤ 16 n,   n = 64 ε max|P − o| |Sz|    (next to the origin)
     ///   miss       if |t| ≤ n and tmin > 16 n
@@ -140,23 +142,27 @@ impl TrianglePacket {
             let u = cx * by - cy * bx;
             let v = ax * cy - ay * cx;
             let w = bx * ay - by * ax;
-            let eu = edge_error(mb.max(mc), bx, by, cx, cy);
-            let ev = edge_error(mc.max(ma), cx, cy, ax, ay);
-            let ew = edge_error(ma.max(mb), ax, ay, bx, by);
-            let positive = u > eu || v > ev || w > ew;
-            let negative = u < -eu || v < -ev || w < -ew;
+            // SSE's `maxps`: the second operand when either is NaN.
+            let max_ps = |a: f32, b: f32| if a > b { a } else { b };
+            let sheared_max = max_ps(
+                max_ps(max_ps(ax.abs(), ay.abs()), max_ps(bx.abs(), by.abs())),
+                max_ps(cx.abs(), cy.abs()),
+            );
+            let m = max_ps(max_ps(ma, mb), mc);
+            let e = shared_edge_error(m, sheared_max);
+            let positive = u > e || v > e || w > e;
+            let negative = u < -e || v < -e || w < -e;
             if positive && negative {
                 continue;
             }
-            let certain = u.abs() > eu && v.abs() > ev && w.abs() > ew;
+            let certain = u.abs() > e && v.abs() > e && w.abs() > e;
             if !certain {
                 out.undecided |= 1 << lane;
                 continue;
             }
             let det = u + v + w;
             let t = (u * (s.z * az) + v * (s.z * bz) + w * (s.z * cz)) / det;
-            let near_origin =
-                Triangle::NEAR_ORIGIN_ULPS * f32::EPSILON * ma.max(mb).max(mc) * s.z.abs();
+            let near_origin = Triangle::NEAR_ORIGIN_ULPS * f32::EPSILON * m * s.z.abs();
             if t.abs() <= near_origin {
                 let beyond = ray.tmin > Triangle::FAR_BEYOND_ROUNDING * near_origin;
                 if !beyond {
@@ -209,26 +215,24 @@ impl TrianglePacket {
             let u = _mm_sub_ps(_mm_mul_ps(cx, by), _mm_mul_ps(cy, bx));
             let v = _mm_sub_ps(_mm_mul_ps(ax, cy), _mm_mul_ps(ay, cx));
             let w = _mm_sub_ps(_mm_mul_ps(bx, ay), _mm_mul_ps(by, ax));
-            let k = _mm_set1_ps(EDGE_ERROR);
-            let bound = |m: __m128, px: __m128, py: __m128, qx: __m128, qy: __m128| {
-                let sum = _mm_add_ps(_mm_add_ps(_mm_add_ps(abs(px), abs(py)), abs(qx)), abs(qy));
-                _mm_mul_ps(_mm_mul_ps(k, m), sum)
-            };
-            let eu = bound(_mm_max_ps(mb, mc), bx, by, cx, cy);
-            let ev = bound(_mm_max_ps(mc, ma), cx, cy, ax, ay);
-            let ew = bound(_mm_max_ps(ma, mb), ax, ay, bx, by);
-            let neg = |e: __m128| _mm_xor_ps(e, sign_bit);
-            // Each edge function beyond its bound, above and below; `|E| > e` is one or the
-            // other (NaN is neither, as in the scalar test).
-            let (pu, pv, pw) = (
-                _mm_cmpgt_ps(u, eu),
-                _mm_cmpgt_ps(v, ev),
-                _mm_cmpgt_ps(w, ew),
+            let sheared_max = _mm_max_ps(
+                _mm_max_ps(_mm_max_ps(abs(ax), abs(ay)), _mm_max_ps(abs(bx), abs(by))),
+                _mm_max_ps(abs(cx), abs(cy)),
             );
+            let m = _mm_max_ps(_mm_max_ps(ma, mb), mc);
+            // `shared_edge_error`, lane by lane.
+            let e = _mm_max_ps(
+                _mm_set1_ps(f32::MIN_POSITIVE),
+                _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(SHARED_EDGE_ERROR), m), sheared_max),
+            );
+            let minus_e = _mm_xor_ps(e, sign_bit);
+            // Each edge function beyond the bound, above and below; `|E| > e` is one or the
+            // other (NaN is neither, as in the scalar test).
+            let (pu, pv, pw) = (_mm_cmpgt_ps(u, e), _mm_cmpgt_ps(v, e), _mm_cmpgt_ps(w, e));
             let (nu, nv, nw) = (
-                _mm_cmplt_ps(u, neg(eu)),
-                _mm_cmplt_ps(v, neg(ev)),
-                _mm_cmplt_ps(w, neg(ew)),
+                _mm_cmplt_ps(u, minus_e),
+                _mm_cmplt_ps(v, minus_e),
+                _mm_cmplt_ps(w, minus_e),
             );
             let positive = _mm_or_ps(_mm_or_ps(pu, pv), pw);
             let negative = _mm_or_ps(_mm_or_ps(nu, nv), nw);
@@ -261,10 +265,7 @@ impl TrianglePacket {
             );
             let t = _mm_div_ps(depth, det);
             let near_origin = _mm_mul_ps(
-                _mm_mul_ps(
-                    _mm_set1_ps(Triangle::NEAR_ORIGIN_ULPS * f32::EPSILON),
-                    _mm_max_ps(_mm_max_ps(ma, mb), mc),
-                ),
+                _mm_mul_ps(_mm_set1_ps(Triangle::NEAR_ORIGIN_ULPS * f32::EPSILON), m),
                 abs(sz),
             );
             let near = _mm_movemask_ps(_mm_cmple_ps(abs(t), near_origin)) as u32;
@@ -335,6 +336,29 @@ mod tests {
                 (i as u32, Triangle::new(v(0), v(1), v(2)))
             }).collect();
             check(&TrianglePacket::new(&tris), &ray)?;
+        }
+
+        /// The same at every scale, from coordinates near the smallest normal float (where
+        /// the bound's floor decides) to near the largest (where shears overflow), with rays
+        /// aimed at a vertex or an edge of one of the triangles, which share vertices.
+        #[test]
+        fn packet_test_at_extreme_scales(
+            scale in prop_oneof![Just(1e-38f32), Just(1e-30), Just(1e-19), Just(1.0), Just(1e19), Just(1e30), Just(1e37)],
+            pts in prop::collection::vec((-2.0f32..2.0, -2.0f32..2.0, -2.0f32..2.0), 5),
+            origin in (-3.0f32..3.0, -3.0f32..3.0, -3.0f32..3.0),
+            (which, a) in (0usize..3, prop_oneof![Just(0.0f32), Just(0.5), 0.0f32..1.0]),
+        ) {
+            let v = |p: (f32, f32, f32)| Vec3::new(p.0, p.1, p.2) * scale;
+            // Four triangles in a fan around pts[0], neighbours sharing an edge.
+            let tris: Vec<(u32, Triangle)> = (0..4)
+                .map(|i| (i as u32, Triangle::new(v(pts[0]), v(pts[1 + i]), v(pts[1 + (i + 1) % 4]))))
+                .collect();
+            let t = tris[0].1;
+            let corners = [t.p0, t.p1, t.p2];
+            let target = corners[which] + a * (corners[(which + 1) % 3] - corners[which]);
+            let origin = v(origin);
+            prop_assume!(target != origin && (target - origin).is_finite());
+            check(&TrianglePacket::new(&tris), &Ray::new(origin, target - origin))?;
         }
 
         /// Rays leaving a point on one of the triangles, with and without an offset `tmin`:
