@@ -14,7 +14,7 @@ const STOPS: [[f32; 3]; 6] = [
 /// Height of the legend strip added below the image, in pixels.
 pub const LEGEND_HEIGHT: u32 = 22;
 
-/// The 8-bit colour of `t ∈ [0, 1]` (clamped) on the scale: linear between [`STOPS`].
+/// The 8-bit colour of `t ∈ [0, 1]` (clamped) on the scale: linear between its stops.
 pub fn scale_colour(t: f32) -> [u8; 3] {
     let t = if t.is_nan() { 0.0 } else { t.clamp(0.0, 1.0) };
     let x = t * (STOPS.len() - 1) as f32;
