@@ -4,8 +4,11 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::box_bound::{prune_threshold, rounding_margin, PointBracket};
+use super::candidate_grid::{
+    CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, NearestTriangles,
+};
 use super::node_frame::FRAME_SHRINK;
-use super::point_triangle::closest_point_on_triangle;
+use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
 use super::search_tree::{SearchTree, SearchTreeConfig};
 use crate::bvh::morton::morton_code;
 use crate::bvh::BuildTree;
@@ -44,6 +47,9 @@ pub struct ClosestPoint {
 #[derive(Clone, Debug)]
 pub struct ClosestPointTree {
     tree: SearchTree,
+    /// Candidate lists and seeds per cell of the space around the mesh (`None`: no grid; batches
+    /// are then sorted and seeded from their neighbours).
+    grid: Option<CandidateGrid>,
 }
 
 /// One pending child of the search: its lower bound, and a node index (`triangles == 0`) or a
@@ -72,11 +78,32 @@ impl ClosestPointTree {
         Self::with_config(tree, mesh, SearchTreeConfig::default())
     }
 
-    /// [`ClosestPointTree::new`] with the leaf size of `config`.
+    /// [`ClosestPointTree::new`] with the leaf size of `config` (and the default grid).
     pub fn with_config(tree: &BuildTree, mesh: &TriangleMesh, config: SearchTreeConfig) -> Self {
-        Self {
+        Self::with_grid(tree, mesh, config, CandidateGridConfig::default())
+    }
+
+    /// [`ClosestPointTree::with_config`] with the candidate grid of `grid` (module
+    /// `candidate_grid`; `grid.cells == 0` for none).
+    pub fn with_grid(
+        tree: &BuildTree,
+        mesh: &TriangleMesh,
+        config: SearchTreeConfig,
+        grid: CandidateGridConfig,
+    ) -> Self {
+        let mut search = Self {
             tree: SearchTree::new(tree, mesh, config),
-        }
+            grid: None,
+        };
+        let b = mesh.bounds();
+        search.grid = CandidateGrid::new(&search, (b.min.as_dvec3(), b.max.as_dvec3()), grid);
+        search
+    }
+
+    /// The candidate grid's number of cells, of cells listing their candidates, and of
+    /// candidates listed (zeros without a grid).
+    pub fn grid_summary(&self) -> (usize, usize, usize) {
+        self.grid.as_ref().map_or((0, 0, 0), CandidateGrid::summary)
     }
 
     /// The nearest surface point to `point`; `None` for an empty tree or a point with a NaN or
@@ -87,7 +114,44 @@ impl ClosestPointTree {
 
     /// [`ClosestPointTree::closest_point`] for an f64 query point.
     pub fn closest_point_f64(&self, p: DVec3) -> Option<ClosestPoint> {
-        self.search(p, None, &mut Vec::new()).map(|(c, _)| c)
+        self.query(p, &mut Vec::new())
+    }
+
+    /// One query: from the grid's candidates, or a tree search from the grid's seed (or no seed
+    /// without a grid).
+    #[inline]
+    fn query(&self, p: DVec3, stack: &mut Vec<Pending>) -> Option<ClosestPoint> {
+        let Some(grid) = &self.grid else {
+            return self.search(p, None, stack).map(|(c, _)| c);
+        };
+        if !p.is_finite() {
+            return None;
+        }
+        match grid.answer(p) {
+            CellAnswer::Candidates(listed, list) => {
+                // The brute force over the list: least computed `d²`, then least face id.
+                let mut best: Option<(TrianglePoint, u32)> = None;
+                let mut best_d2 = f64::INFINITY;
+                for &index in list {
+                    let t = &listed[index as usize];
+                    let [a, b, c] = t.vertices;
+                    let q = closest_point_on_triangle(p, a, b, c);
+                    let d2 = (p - q.point).length_squared();
+                    if d2 < best_d2 || (d2 == best_d2 && best.is_some_and(|(_, b)| t.prim < b)) {
+                        best_d2 = d2;
+                        best = Some((q, t.prim));
+                    }
+                }
+                best.map(|(q, prim)| ClosestPoint {
+                    point: q.point,
+                    distance: best_d2.sqrt(),
+                    prim,
+                    u: q.u,
+                    v: q.v,
+                })
+            }
+            CellAnswer::Seed(seed) => self.search(p, Some(seed), stack).map(|(c, _)| c),
+        }
     }
 
     /// The nearest surface point to each of `points` (as [`ClosestPointTree::closest_point_f64`],
@@ -102,40 +166,55 @@ impl ClosestPointTree {
     /// every triangle it does not prune, pruning stays conservative, and the seed triangle's
     /// `d²` is computed exactly as when its leaf is reached.
     pub fn closest_points(&self, points: &[DVec3]) -> Vec<Option<ClosestPoint>> {
+        if self.grid.is_some() {
+            let mut out = vec![None; points.len()];
+            out.par_chunks_mut(Self::RUN)
+                .zip(points.par_chunks(Self::RUN))
+                .for_each(|(out, run)| {
+                    let mut stack = Vec::with_capacity(64);
+                    for (o, &p) in out.iter_mut().zip(run) {
+                        *o = self.query(p, &mut stack);
+                    }
+                });
+            return out;
+        }
         let bounds = points
             .iter()
             .filter(|p| p.is_finite())
             .fold(Aabb::EMPTY, |b, p| b.union_point(p.as_vec3()));
-        let mut order: Vec<(u64, u32)> = points
+        let mut order: Vec<u64> = points
             .par_iter()
             .enumerate()
             .map(|(i, p)| {
                 let code = if p.is_finite() {
-                    morton_code(p.as_vec3(), &bounds)
+                    morton_code(p.as_vec3(), &bounds) >> 33
                 } else {
-                    u64::MAX
+                    u64::MAX >> 33
                 };
-                (code, i as u32)
+                (code << 32) | i as u64
             })
             .collect();
         order.par_sort_unstable();
-        let found: Vec<(u32, Option<ClosestPoint>)> = order
-            .par_chunks(Self::RUN)
-            .flat_map_iter(|run| {
+        let in_order: Vec<DVec3> = order
+            .par_iter()
+            .map(|&key| points[key as u32 as usize])
+            .collect();
+        let mut sorted = vec![None; points.len()];
+        sorted
+            .par_chunks_mut(Self::RUN)
+            .zip(in_order.par_chunks(Self::RUN))
+            .for_each(|(out, run)| {
                 let mut seed = None;
                 let mut stack = Vec::with_capacity(64);
-                run.iter()
-                    .map(|&(_, i)| {
-                        let found = self.search(points[i as usize], seed, &mut stack);
-                        seed = found.map(|(_, local)| local).or(seed);
-                        (i, found.map(|(c, _)| c))
-                    })
-                    .collect::<Vec<_>>()
-            })
-            .collect();
+                for (o, &p) in out.iter_mut().zip(run) {
+                    let found = self.search(p, seed, &mut stack);
+                    seed = found.map(|(_, local)| local).or(seed);
+                    *o = found.map(|(c, _)| c);
+                }
+            });
         let mut out = vec![None; points.len()];
-        for (i, c) in found {
-            out[i as usize] = c;
+        for (found, &key) in sorted.into_iter().zip(&order) {
+            out[key as u32 as usize] = found;
         }
         out
     }
@@ -282,6 +361,82 @@ impl ClosestPointTree {
                 v: q.v,
             };
             best.found = Some((found, local));
+        }
+    }
+}
+
+impl ClosestPointTree {
+    /// Every triangle whose computed squared distance from `p` is at most `radius_squared`,
+    /// `None` when more than `limit`: the search's walk with a fixed threshold
+    /// (`prune_threshold(radius_squared, δ)`, under which no triangle of a pruned box can have a
+    /// computed distance within the radius).
+    fn triangles_within(&self, p: DVec3, radius_squared: f64, limit: usize) -> Option<Vec<u32>> {
+        let tree = &self.tree;
+        let mut found = Vec::new();
+        if tree.nodes.is_empty() || !p.is_finite() {
+            return Some(found);
+        }
+        let bracket = PointBracket::new(p);
+        let threshold = prune_threshold(radius_squared, rounding_margin(p, tree.mesh_scale));
+        let mut stack = vec![(0u32, 0u32)];
+        while let Some((child, triangles)) = stack.pop() {
+            if triangles > 0 {
+                for k in 0..triangles {
+                    let local = child * 4 + k;
+                    if self.distance_squared(p, local) <= radius_squared {
+                        found.push(local);
+                        if found.len() > limit {
+                            return None;
+                        }
+                    }
+                }
+                continue;
+            }
+            let node = &tree.nodes[child as usize];
+            let bounds = match &node.frame {
+                None => node.bounds.distance_squared_lower_bounds(&bracket),
+                Some(frame) => node
+                    .bounds
+                    .distance_squared_lower_bounds(&frame.bracket(&bracket))
+                    .map(|b| b * FRAME_SHRINK),
+            };
+            for (k, &bound) in bounds.iter().enumerate() {
+                // Empty slots have NaN bounds and fail the test.
+                if bound <= threshold {
+                    stack.push((node.child[k], node.triangles[k]));
+                }
+            }
+        }
+        Some(found)
+    }
+}
+
+impl NearestTriangles for ClosestPointTree {
+    fn nearest(&self, p: DVec3) -> Option<u32> {
+        self.search(p, None, &mut Vec::new())
+            .map(|(_, local)| local)
+    }
+
+    fn distance_squared(&self, p: DVec3, local: u32) -> f64 {
+        let packet = &self.tree.packets[local as usize / 4];
+        let [a, b, c] = packet.triangle(local as usize % 4);
+        (p - closest_point_on_triangle(p, a, b, c).point).length_squared()
+    }
+
+    fn within(&self, p: DVec3, radius_squared: f64, limit: usize) -> Option<Vec<u32>> {
+        self.triangles_within(p, radius_squared, limit)
+    }
+
+    fn mesh_scale(&self) -> f64 {
+        self.tree.mesh_scale
+    }
+
+    fn triangle(&self, local: u32) -> ListedTriangle {
+        let packet = &self.tree.packets[local as usize / 4];
+        let lane = local as usize % 4;
+        ListedTriangle {
+            vertices: packet.triangle(lane),
+            prim: packet.prim[lane],
         }
     }
 }

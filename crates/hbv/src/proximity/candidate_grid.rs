@@ -1,0 +1,268 @@
+//! A uniform grid over the space around a mesh whose cells know, ahead of any query, which few
+//! triangles can be nearest to a point inside them: the nearest-point search's shortcut for
+//! meshes of few, large triangles (modelled scenes: walls, boxes), where a tree search spends
+//! its time bounding triangles it then rejects.
+//!
+//! **Candidates of a cell** (a conservative form of the Voronoi-cell lists of distance-field
+//! methods, e.g. Mauch 2000, "A fast algorithm for computing the closest point and distance
+//! transform"). Let `C` be a cell (a box with half-diagonal `r` and centre `c`), `t_c` the
+//! triangle nearest to `c`, and `U = max_corner D(corner, t_c)`: the distance to a convex set is
+//! a convex function, so its largest value over the box is at a corner, and every point `p` of
+//! `C` has a triangle within `U`. The triangle `w` nearest to `p` then has
+//! `D(c, w) ≤ D(p, w) + |p - c| ≤ U + r`, so the triangles within `U + r` of the centre hold the
+//! answer for every point of the cell. With the f64 routine's rounding (computed distances within
+//! `δ` of the real ones, `box_bound::rounding_margin`), the list is the triangles whose computed
+//! distance from `c` is at most `Ũ + r + 4δ`: `D̃(c,w) ≤ D(c,w) + δ ≤ D(p,w) + r + δ ≤
+//! D̃(p,w) + r + 2δ ≤ D̃(p,t_c) + r + 2δ ≤ D(p,t_c) + r + 3δ ≤ U + r + 3δ ≤ Ũ + r + 4δ`
+//! (`D̃(p,w) ≤ D̃(p,t_c)`: `w` is the brute force's pick, the least computed distance). A query in
+//! the cell decides those few triangles with the same f64 routine as the brute force, and so
+//! gives its answer, ties included.
+//!
+//! A cell with more than [`CandidateGridConfig::max_candidates`] such triangles (cells of
+//! scanned meshes, whose many small triangles crowd every shell) keeps only `t_c`, as the seed of
+//! a tree search: the best-so-far it starts from, which stands in for the nearest triangle of the
+//! previous point in a Morton-sorted batch, without the sort. Points outside the grid are seeded
+//! from the nearest cell.
+//!
+//! Cells are enlarged by a millionth of their size (and a `10⁻¹²` of the coordinates) on every
+//! side before the lists are made, so that a point the index arithmetic rounds into a
+//! neighbouring cell still lies in that cell's box.
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// Knobs of the [`CandidateGrid`].
+#[derive(Clone, Copy, Debug)]
+pub struct CandidateGridConfig {
+    /// About how many cells the grid has (cubic cells, over the mesh's box grown by
+    /// [`CandidateGridConfig::margin`] of its largest extent on every side); 0: no grid, batches
+    /// are sorted in Morton order and seeded from their neighbours instead.
+    pub cells: usize,
+    /// A cell lists its triangles only when there are at most this many; otherwise its queries
+    /// search the tree.
+    pub max_candidates: usize,
+    /// The grid covers the mesh's box grown by this share of its largest extent on every side.
+    pub margin: f64,
+}
+
+impl Default for CandidateGridConfig {
+    fn default() -> Self {
+        Self {
+            cells: 32_768,
+            max_candidates: 8,
+            margin: 0.25,
+        }
+    }
+}
+
+/// One cell: `count > 0` triangles listed from `first` in the grid's candidate array, or
+/// (`count == 0`) the seed triangle `first` of a tree search. Triangles are the search tree's
+/// local ids (`4 × packet + lane`).
+#[derive(Clone, Copy, Debug)]
+struct Cell {
+    first: u32,
+    count: u32,
+}
+
+/// A triangle some cell lists, in f64 (exact: the mesh's f32 vertices), with its face id.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct ListedTriangle {
+    pub vertices: [DVec3; 3],
+    pub prim: u32,
+}
+
+/// What a query point's cell says.
+pub(super) enum CellAnswer<'a> {
+    /// Every triangle that can be nearest to the point.
+    Candidates(&'a [ListedTriangle], &'a [u32]),
+    /// Search the tree, starting from this triangle.
+    Seed(u32),
+}
+
+/// The grid: `dims` cells of edge `size` from `origin`, x fastest.
+#[derive(Clone, Debug)]
+pub(super) struct CandidateGrid {
+    origin: DVec3,
+    size: f64,
+    dims: [usize; 3],
+    cells: Vec<Cell>,
+    /// The cells' lists, one after another: indices into `listed`.
+    candidates: Vec<u32>,
+    /// The triangles listed by some cell.
+    listed: Vec<ListedTriangle>,
+    /// The search tree's local id of each of `listed` (cells that seed a search hold local ids).
+    local: Vec<u32>,
+}
+
+/// The nearest-point queries the grid is made from (implemented by the search tree).
+pub(super) trait NearestTriangles: Sync {
+    /// The triangle nearest to `p` (local id), if any.
+    fn nearest(&self, p: DVec3) -> Option<u32>;
+    /// The computed (f64 routine) squared distance from `p` to triangle `local`.
+    fn distance_squared(&self, p: DVec3, local: u32) -> f64;
+    /// Every triangle whose computed squared distance from `p` is at most `radius_squared`
+    /// (local ids), or `None` when there are more than `limit`.
+    fn within(&self, p: DVec3, radius_squared: f64, limit: usize) -> Option<Vec<u32>>;
+    /// The largest coordinate magnitude of the triangles.
+    fn mesh_scale(&self) -> f64;
+    /// Triangle `local`'s vertices in f64 and its face id.
+    fn triangle(&self, local: u32) -> ListedTriangle;
+}
+
+impl CandidateGrid {
+    /// The grid over `bounds` (the mesh's box, `min`, `max`); `None` for a configuration without
+    /// cells or an empty mesh.
+    pub fn new(
+        search: &impl NearestTriangles,
+        (min, max): (DVec3, DVec3),
+        config: CandidateGridConfig,
+    ) -> Option<Self> {
+        if config.cells == 0 || !(min.is_finite() && max.is_finite()) {
+            return None;
+        }
+        let grow = (max - min).max_element() * config.margin;
+        let (lo, hi) = (min - DVec3::splat(grow), max + DVec3::splat(grow));
+        let extent = (hi - lo).max(DVec3::splat((hi - lo).max_element() * 1e-3));
+        let volume = extent.x * extent.y * extent.z;
+        let size = (volume / config.cells as f64).cbrt();
+        if !(size > 0.0 && size.is_finite()) {
+            return None;
+        }
+        let dims = extent
+            .to_array()
+            .map(|e| ((e / size).ceil() as usize).clamp(1, 1024));
+        let count = dims[0] * dims[1] * dims[2];
+        let origin = lo;
+        let lists: Vec<Result<Vec<u32>, u32>> = (0..count)
+            .into_par_iter()
+            .map(|index| {
+                let at = [
+                    index % dims[0],
+                    index / dims[0] % dims[1],
+                    index / (dims[0] * dims[1]),
+                ];
+                cell_list(search, origin, size, at, config.max_candidates)
+            })
+            .collect::<Option<_>>()?;
+        let mut grid = CandidateGrid {
+            origin,
+            size,
+            dims,
+            cells: Vec::with_capacity(count),
+            candidates: Vec::new(),
+            listed: Vec::new(),
+            local: Vec::new(),
+        };
+        let mut index_of = std::collections::HashMap::new();
+        for list in lists {
+            grid.cells.push(match list {
+                Ok(list) => {
+                    let first = grid.candidates.len() as u32;
+                    for local in list {
+                        let index = *index_of.entry(local).or_insert_with(|| {
+                            grid.listed.push(search.triangle(local));
+                            grid.local.push(local);
+                            grid.listed.len() as u32 - 1
+                        });
+                        grid.candidates.push(index);
+                    }
+                    Cell {
+                        first,
+                        count: grid.candidates.len() as u32 - first,
+                    }
+                }
+                Err(seed) => Cell {
+                    first: seed,
+                    count: 0,
+                },
+            });
+        }
+        Some(grid)
+    }
+
+    /// The cell of a finite point `p` (the nearest cell for a point outside the grid) and what it
+    /// says: candidates only for a point inside the grid.
+    #[inline]
+    pub fn answer(&self, p: DVec3) -> CellAnswer<'_> {
+        let q = (p - self.origin) / self.size;
+        let mut index = 0;
+        let mut inside = true;
+        let mut stride = 1;
+        for (axis, &dim) in self.dims.iter().enumerate() {
+            let x = q[axis];
+            // `as usize` truncates (the floor for x ≥ 0) and saturates: negative values to 0.
+            // (Not `floor`: without SSE4.1 it is a library call.)
+            let k = x as usize;
+            inside &= x >= 0.0 && k < dim;
+            let k = k.min(dim - 1);
+            index += k * stride;
+            stride *= dim;
+        }
+        let cell = self.cells[index];
+        if cell.count == 0 {
+            CellAnswer::Seed(cell.first)
+        } else if inside {
+            CellAnswer::Candidates(
+                &self.listed,
+                &self.candidates[cell.first as usize..(cell.first + cell.count) as usize],
+            )
+        } else {
+            CellAnswer::Seed(self.local[self.candidates[cell.first as usize] as usize])
+        }
+    }
+
+    /// The number of cells, of cells that list their candidates, and of candidates listed.
+    pub fn summary(&self) -> (usize, usize, usize) {
+        let listing = self.cells.iter().filter(|c| c.count > 0).count();
+        (self.cells.len(), listing, self.candidates.len())
+    }
+}
+
+/// Relative growth of a cell on each side before its list is made (see the module's notes).
+const CELL_GROWTH: f64 = 1e-6;
+
+/// The candidates of cell `at` (`Ok`, sorted by local id), or its seed when they are more than
+/// `limit` (`Err`); `None` only for an empty mesh.
+fn cell_list(
+    search: &impl NearestTriangles,
+    origin: DVec3,
+    size: f64,
+    at: [usize; 3],
+    limit: usize,
+) -> Option<Result<Vec<u32>, u32>> {
+    let at = DVec3::new(at[0] as f64, at[1] as f64, at[2] as f64);
+    let (lo, hi) = (origin + at * size, origin + (at + DVec3::ONE) * size);
+    let scale = lo
+        .abs()
+        .max(hi.abs())
+        .max_element()
+        .max(search.mesh_scale());
+    let grow = size * CELL_GROWTH + scale * 1e-12;
+    let (lo, hi) = (lo - DVec3::splat(grow), hi + DVec3::splat(grow));
+    let centre = (lo + hi) * 0.5;
+    let seed = search.nearest(centre)?;
+    let corners = (0..8).map(|k| {
+        DVec3::new(
+            if k & 1 == 0 { lo.x } else { hi.x },
+            if k & 2 == 0 { lo.y } else { hi.y },
+            if k & 4 == 0 { lo.z } else { hi.z },
+        )
+    });
+    let farthest = corners
+        .map(|corner| search.distance_squared(corner, seed))
+        .fold(0.0f64, f64::max)
+        .sqrt();
+    // δ of every point of the cell (`box_bound::rounding_margin`), and generous slack for the
+    // rounding of this sum (a relative 10⁻¹², thousands of times f64's).
+    let delta = scale * f64::powi(2.0, -32);
+    let half_diagonal = (hi - lo).length() * 0.5;
+    let radius = (farthest + half_diagonal + 4.0 * delta) * (1.0 + 1e-12);
+    Some(match search.within(centre, radius * radius, limit) {
+        // (Never empty: the seed is within `farthest` of the centre.)
+        Some(mut list) if !list.is_empty() => {
+            list.sort_unstable();
+            Ok(list)
+        }
+        _ => Err(seed),
+    })
+}
