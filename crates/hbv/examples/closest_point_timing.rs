@@ -1,6 +1,6 @@
 //! Times `ClosestPointTree::closest_points` on a mesh file, one thread, the points of
 //! `bench/python_compare.py` (uniform in the mesh's box grown 10 % on each side):
-//! `cargo run --release -p hbv --example closest_point_timing -- MESH [POINTS] [ROUNDS] [LEAF_TRIANGLES] [aligned] [cells=N] [candidates=K] [margin=F]`
+//! `cargo run --release -p hbv --example closest_point_timing -- MESH [POINTS] [ROUNDS] [LEAF_TRIANGLES] [aligned] [cells=N] [candidates=K] [margin=F] [listing=F]`
 //! (`cells=0`: no candidate grid, batches sorted in Morton order as before it).
 //! Prints the build time of the search tree and the median and best M queries/s.
 
@@ -20,6 +20,7 @@ fn main() {
             Some(("cells", n)) => grid.cells = n.parse().unwrap(),
             Some(("candidates", n)) => grid.max_candidates = n.parse().unwrap(),
             Some(("margin", f)) => grid.margin = f.parse().unwrap(),
+            Some(("listing", f)) => grid.min_listing = f.parse().unwrap(),
             _ => {}
         }
     }

@@ -99,12 +99,16 @@ fn grid_config() -> impl Strategy<Value = CandidateGridConfig> {
         prop_oneof![Just(0usize), 1usize..300, Just(4096)],
         prop_oneof![1usize..4, 4usize..64],
         prop_oneof![Just(0.0f64), Just(0.25), 0.0f64..2.0],
+        prop_oneof![Just(0.0f64), Just(0.5)],
     )
-        .prop_map(|(cells, max_candidates, margin)| CandidateGridConfig {
-            cells,
-            max_candidates,
-            margin,
-        })
+        .prop_map(
+            |(cells, max_candidates, margin, min_listing)| CandidateGridConfig {
+                cells,
+                max_candidates,
+                margin,
+                min_listing,
+            },
+        )
 }
 
 fn assert_closest_points_agree_with(

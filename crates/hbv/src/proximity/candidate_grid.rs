@@ -43,6 +43,9 @@ pub struct CandidateGridConfig {
     pub max_candidates: usize,
     /// The grid covers the mesh's box grown by this share of its largest extent on every side.
     pub margin: f64,
+    /// The grid is made only if at least this share of a sample of its cells list their
+    /// candidates (0: always).
+    pub min_listing: f64,
 }
 
 impl Default for CandidateGridConfig {
@@ -51,6 +54,7 @@ impl Default for CandidateGridConfig {
             cells: 32_768,
             max_candidates: 8,
             margin: 0.25,
+            min_listing: 0.5,
         }
     }
 }
@@ -133,16 +137,31 @@ impl CandidateGrid {
             .map(|e| ((e / size).ceil() as usize).clamp(1, 1024));
         let count = dims[0] * dims[1] * dims[2];
         let origin = lo;
+        let list_at = |index: usize| {
+            let at = [
+                index % dims[0],
+                index / dims[0] % dims[1],
+                index / (dims[0] * dims[1]),
+            ];
+            cell_list(search, origin, size, at, config.max_candidates)
+        };
+        // A grid whose cells mostly seed searches is slower than none (batches are then sorted
+        // in Morton order, which keeps the tree's nodes in cache from one query to the next):
+        // a sample of cells decides first.
+        let stride = (count / PROBE_CELLS).max(1);
+        let probed: Vec<bool> = (0..count)
+            .step_by(stride)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|index| list_at(index).map(|list| list.is_ok()))
+            .collect::<Option<_>>()?;
+        let listing = probed.iter().filter(|&&listing| listing).count();
+        if (listing as f64) < config.min_listing * probed.len() as f64 {
+            return None;
+        }
         let lists: Vec<Result<Vec<u32>, u32>> = (0..count)
             .into_par_iter()
-            .map(|index| {
-                let at = [
-                    index % dims[0],
-                    index / dims[0] % dims[1],
-                    index / (dims[0] * dims[1]),
-                ];
-                cell_list(search, origin, size, at, config.max_candidates)
-            })
+            .map(list_at)
             .collect::<Option<_>>()?;
         let mut grid = CandidateGrid {
             origin,
@@ -217,6 +236,9 @@ impl CandidateGrid {
         (self.cells.len(), listing, self.candidates.len())
     }
 }
+
+/// Cells tried before the grid is made (evenly spread over its index order).
+const PROBE_CELLS: usize = 512;
 
 /// Relative growth of a cell on each side before its list is made (see the module's notes).
 const CELL_GROWTH: f64 = 1e-6;

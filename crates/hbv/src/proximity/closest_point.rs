@@ -47,8 +47,9 @@ pub struct ClosestPoint {
 #[derive(Clone, Debug)]
 pub struct ClosestPointTree {
     tree: SearchTree,
-    /// Candidate lists and seeds per cell of the space around the mesh (`None`: no grid; batches
-    /// are then sorted and seeded from their neighbours).
+    /// Candidate lists and seeds per cell of the space around the mesh (`None`: no grid, or one
+    /// whose cells would mostly seed searches; batches are then sorted and seeded from their
+    /// neighbours).
     grid: Option<CandidateGrid>,
 }
 
