@@ -10,7 +10,8 @@ use hbv::geometry::Aabb;
 use hbv::glam::{DVec3, Vec3};
 use hbv::mesh::procedural::{icosphere, torus};
 use hbv::proximity::{
-    closest_point_brute_force, contains, CandidateGridConfig, ClosestPointTree, SearchTreeConfig,
+    closest_point_brute_force, contains, CandidateGridConfig, ClosestPointColumns,
+    ClosestPointTree, SearchTreeConfig,
 };
 use hbv::{BruteForce, TriangleMesh};
 use proptest::prelude::*;
@@ -145,6 +146,45 @@ fn assert_closest_points_agree_with(
         for (i, got) in search.closest_points(&as_f64).into_iter().enumerate() {
             let want = closest_point_brute_force(mesh, as_f64[i]);
             prop_assert_eq!(want, got, "{} batch: point {} {:?}", name, i, points[i]);
+        }
+        // The column form: the same answers, NaN, +inf, -1, 0, 0 for none.
+        let n = points.len();
+        let (mut point, mut distance) = (vec![[0.0; 3]; n], vec![0.0; n]);
+        let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0; n], vec![0.0; n]);
+        search.closest_points_into(
+            &as_f64,
+            ClosestPointColumns {
+                point: &mut point,
+                distance: &mut distance,
+                prim: &mut prim,
+                u: &mut u,
+                v: &mut v,
+            },
+        );
+        for (i, &p) in as_f64.iter().enumerate() {
+            let row = (point[i], distance[i], prim[i], u[i], v[i]);
+            let want = match closest_point_brute_force(mesh, p) {
+                Some(c) => (c.point.to_array(), c.distance, c.prim as i64, c.u, c.v),
+                None => ([f64::NAN; 3], f64::INFINITY, -1, 0.0, 0.0),
+            };
+            // Compared as bits: NaN rows must match too.
+            let bits = |(q, d, k, u, v): ([f64; 3], f64, i64, f64, f64)| {
+                (
+                    q.map(f64::to_bits),
+                    d.to_bits(),
+                    k,
+                    u.to_bits(),
+                    v.to_bits(),
+                )
+            };
+            prop_assert_eq!(
+                bits(want),
+                bits(row),
+                "{} columns: point {} {:?}",
+                name,
+                i,
+                p
+            );
         }
     }
     Ok(())

@@ -53,6 +53,46 @@ pub struct ClosestPointTree {
     grid: Option<CandidateGrid>,
 }
 
+/// Output columns for [`ClosestPointTree::closest_points_into`], one entry per query point:
+/// the nearest point, its distance, the triangle (-1 for none) and the barycentrics `u`, `v`.
+pub struct ClosestPointColumns<'a> {
+    pub point: &'a mut [[f64; 3]],
+    pub distance: &'a mut [f64],
+    pub prim: &'a mut [i64],
+    pub u: &'a mut [f64],
+    pub v: &'a mut [f64],
+}
+
+/// One run's slices of the five columns.
+type ColumnRun<'r> = (
+    &'r mut [[f64; 3]],
+    &'r mut [f64],
+    &'r mut [i64],
+    &'r mut [f64],
+    &'r mut [f64],
+);
+
+/// Writes answer `found` as row `k` of the columns.
+#[inline]
+fn write_row(found: Option<ClosestPoint>, k: usize, (point, distance, prim, u, v): ColumnRun<'_>) {
+    match found {
+        Some(c) => {
+            point[k] = c.point.to_array();
+            distance[k] = c.distance;
+            prim[k] = c.prim as i64;
+            u[k] = c.u;
+            v[k] = c.v;
+        }
+        None => {
+            point[k] = [f64::NAN; 3];
+            distance[k] = f64::INFINITY;
+            prim[k] = -1;
+            u[k] = 0.0;
+            v[k] = 0.0;
+        }
+    }
+}
+
 /// One pending child of the search: its lower bound, and a node index (`triangles == 0`) or a
 /// leaf's first packet and triangle count.
 #[derive(Clone, Copy, Debug)]
@@ -158,7 +198,10 @@ impl ClosestPointTree {
     /// The nearest surface point to each of `points` (as [`ClosestPointTree::closest_point_f64`],
     /// the same answers), in parallel on the current rayon pool.
     ///
-    /// The points are searched in Morton order (Morton 1966: bits of the quantized x, y, z
+    /// With a candidate grid (meshes of few, large triangles; module `candidate_grid`) each
+    /// point is answered from its cell: the brute force over the cell's list, or a search seeded
+    /// with the cell's triangle. Otherwise the points are searched in Morton order (Morton
+    /// 1966: bits of the quantized x, y, z
     /// interleaved, so that points near in the order are near in space), in runs of
     /// [`Self::RUN`]; each search but a run's first starts with the previous point's nearest
     /// triangle as its best so far. The distance to a neighbour's nearest triangle is a tight
@@ -179,16 +222,80 @@ impl ClosestPointTree {
                 });
             return out;
         }
+        let (order, sorted) = self.search_in_morton_order(points);
+        let mut out = vec![None; points.len()];
+        for (found, &key) in sorted.into_iter().zip(&order) {
+            out[key as u32 as usize] = found;
+        }
+        out
+    }
+
+    /// [`ClosestPointTree::closest_points`] written column by column into `out`, as array
+    /// libraries (NumPy) hold answers, without a list of them in between; a point without an
+    /// answer gets NaN, +∞, -1, 0, 0. Panics if a column's length is not the number of points.
+    pub fn closest_points_into(&self, points: &[DVec3], out: ClosestPointColumns<'_>) {
+        let n = points.len();
+        let ClosestPointColumns {
+            point,
+            distance,
+            prim,
+            u,
+            v,
+        } = out;
+        assert!(
+            [point.len(), distance.len(), prim.len(), u.len(), v.len()] == [n; 5],
+            "closest_points_into: every column must have one entry per point"
+        );
+        let columns = (
+            point.par_chunks_mut(Self::RUN),
+            distance.par_chunks_mut(Self::RUN),
+            prim.par_chunks_mut(Self::RUN),
+            u.par_chunks_mut(Self::RUN),
+            v.par_chunks_mut(Self::RUN),
+        );
+        if self.grid.is_some() {
+            (columns, points.par_chunks(Self::RUN))
+                .into_par_iter()
+                .for_each(|((point, distance, prim, u, v), run)| {
+                    let mut stack = Vec::with_capacity(64);
+                    for (k, &p) in run.iter().enumerate() {
+                        let found = self.query(p, &mut stack);
+                        write_row(found, k, (point, distance, prim, u, v));
+                    }
+                });
+            return;
+        }
+        let (order, sorted) = self.search_in_morton_order(points);
+        // Where each point's answer is in `sorted`; then each column is gathered in parallel.
+        let mut rank = vec![0u32; n];
+        for (j, &key) in order.iter().enumerate() {
+            rank[key as u32 as usize] = j as u32;
+        }
+        (columns, rank.par_chunks(Self::RUN))
+            .into_par_iter()
+            .for_each(|((point, distance, prim, u, v), ranks)| {
+                for (k, &j) in ranks.iter().enumerate() {
+                    write_row(sorted[j as usize], k, (point, distance, prim, u, v));
+                }
+            });
+    }
+
+    /// The batch's searches in Morton order (module notes of
+    /// [`ClosestPointTree::closest_points`]): the sort keys (`code << 32 | index`, ascending)
+    /// and the answers in that order.
+    fn search_in_morton_order(&self, points: &[DVec3]) -> (Vec<u64>, Vec<Option<ClosestPoint>>) {
         let bounds = points
             .iter()
             .filter(|p| p.is_finite())
             .fold(Aabb::EMPTY, |b, p| b.union_point(p.as_vec3()));
+        // 31 bits of the Morton code (10 per axis and one) above the point's index: one u64
+        // to sort.
         let mut order: Vec<u64> = points
             .par_iter()
             .enumerate()
             .map(|(i, p)| {
                 let code = if p.is_finite() {
-                    morton_code(p.as_vec3(), &bounds) >> 33
+                    morton_code(p.as_vec3(), &bounds) >> 32
                 } else {
                     u64::MAX >> 33
                 };
@@ -196,6 +303,7 @@ impl ClosestPointTree {
             })
             .collect();
         order.par_sort_unstable();
+        // Gathered first: read inside the search loop, each point was a cache miss.
         let in_order: Vec<DVec3> = order
             .par_iter()
             .map(|&key| points[key as u32 as usize])
@@ -213,11 +321,7 @@ impl ClosestPointTree {
                     *o = found.map(|(c, _)| c);
                 }
             });
-        let mut out = vec![None; points.len()];
-        for (found, &key) in sorted.into_iter().zip(&order) {
-            out[key as u32 as usize] = found;
-        }
-        out
+        (order, sorted)
     }
 
     /// Points per run of [`ClosestPointTree::closest_points`]: one rayon task, seeded in turn.

@@ -16,7 +16,9 @@ mod search_tree;
 mod triangle_packet;
 
 pub use candidate_grid::CandidateGridConfig;
-pub use closest_point::{closest_point_brute_force, ClosestPoint, ClosestPointTree};
+pub use closest_point::{
+    closest_point_brute_force, ClosestPoint, ClosestPointColumns, ClosestPointTree,
+};
 pub use inside::contains;
 pub use point_triangle::{closest_point_on_triangle, TrianglePoint};
 pub use search_tree::SearchTreeConfig;
