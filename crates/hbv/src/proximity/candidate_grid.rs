@@ -31,6 +31,8 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
+
 /// Knobs of the [`CandidateGrid`].
 #[derive(Clone, Copy, Debug)]
 pub struct CandidateGridConfig {
@@ -76,9 +78,10 @@ pub(super) struct ListedTriangle {
 }
 
 /// What a query point's cell says.
-pub(super) enum CellAnswer<'a> {
-    /// Every triangle that can be nearest to the point.
-    Candidates(&'a [ListedTriangle], &'a [u32]),
+pub(super) enum CellAnswer {
+    /// The answer, from the cell's list: the nearest point, its computed squared distance and
+    /// its triangle's face id.
+    Nearest(TrianglePoint, f64, u32),
     /// Search the tree, starting from this triangle.
     Seed(u32),
 }
@@ -90,8 +93,15 @@ pub(super) struct CandidateGrid {
     size: f64,
     dims: [usize; 3],
     cells: Vec<Cell>,
-    /// The cells' lists, one after another: indices into `listed`.
+    /// The cells' lists, one after another, each nearest to its cell's centre first: indices
+    /// into `listed`.
     candidates: Vec<u32>,
+    /// For each of `candidates`, its computed distance from the cell's centre, rounded down.
+    centre_distance: Vec<f32>,
+    /// The rounding margin `δ` (`box_bound::rounding_margin`) of every point of the grid.
+    delta: f64,
+    /// The largest coordinate magnitude of the mesh's triangles.
+    mesh_scale: f64,
     /// The triangles listed by some cell.
     listed: Vec<ListedTriangle>,
     /// The search tree's local id of each of `listed` (cells that seed a search hold local ids).
@@ -145,6 +155,7 @@ impl CandidateGrid {
             ];
             cell_list(search, origin, size, at, config.max_candidates)
         };
+        let far = (origin.abs().max((origin + extent).abs() + size)).max_element();
         // A grid whose cells mostly seed searches is slower than none (batches are then sorted
         // in Morton order, which keeps the tree's nodes in cache from one query to the next):
         // a sample of cells decides first.
@@ -159,7 +170,7 @@ impl CandidateGrid {
         if (listing as f64) < config.min_listing * probed.len() as f64 {
             return None;
         }
-        let lists: Vec<Result<Vec<u32>, u32>> = (0..count)
+        let lists: Vec<Result<Vec<(u32, f32)>, u32>> = (0..count)
             .into_par_iter()
             .map(list_at)
             .collect::<Option<_>>()?;
@@ -169,6 +180,9 @@ impl CandidateGrid {
             dims,
             cells: Vec::with_capacity(count),
             candidates: Vec::new(),
+            centre_distance: Vec::new(),
+            delta: (far * 2.0).max(search.mesh_scale()) * f64::powi(2.0, -32),
+            mesh_scale: search.mesh_scale(),
             listed: Vec::new(),
             local: Vec::new(),
         };
@@ -177,7 +191,8 @@ impl CandidateGrid {
             grid.cells.push(match list {
                 Ok(list) => {
                     let first = grid.candidates.len() as u32;
-                    for local in list {
+                    for (local, distance) in list {
+                        grid.centre_distance.push(distance);
                         let index = *index_of.entry(local).or_insert_with(|| {
                             grid.listed.push(search.triangle(local));
                             grid.local.push(local);
@@ -200,33 +215,65 @@ impl CandidateGrid {
     }
 
     /// The cell of a finite point `p` (the nearest cell for a point outside the grid) and what it
-    /// says: candidates only for a point inside the grid.
+    /// says: an answer only for a point inside the grid.
+    ///
+    /// The cell's list is tried nearest to the centre `c` first, and ends at the first triangle
+    /// `t` whose rounded-down distance from the centre `l_t` exceeds
+    /// `(D̃_best + |p - c|)(1 + 10⁻¹²) + 2δ`: then
+    /// `D̃(p,t) ≥ D(p,t) - δ ≥ D(c,t) - |p - c| - δ ≥ l_t - |p - c| - 2δ > D̃_best`, so neither it
+    /// nor any later one (their `l` are larger) is as near as the best.
     #[inline]
-    pub fn answer(&self, p: DVec3) -> CellAnswer<'_> {
-        let q = (p - self.origin) / self.size;
+    pub fn answer(&self, p: DVec3) -> CellAnswer {
+        let q = (p - self.origin) * (1.0 / self.size);
         let mut index = 0;
         let mut inside = true;
         let mut stride = 1;
+        let mut at = [0usize; 3];
         for (axis, &dim) in self.dims.iter().enumerate() {
             let x = q[axis];
             // `as usize` truncates (the floor for x ≥ 0) and saturates: negative values to 0.
             // (Not `floor`: without SSE4.1 it is a library call.)
             let k = x as usize;
             inside &= x >= 0.0 && k < dim;
-            let k = k.min(dim - 1);
-            index += k * stride;
+            at[axis] = k.min(dim - 1);
+            index += at[axis] * stride;
             stride *= dim;
         }
         let cell = self.cells[index];
         if cell.count == 0 {
-            CellAnswer::Seed(cell.first)
-        } else if inside {
-            CellAnswer::Candidates(
-                &self.listed,
-                &self.candidates[cell.first as usize..(cell.first + cell.count) as usize],
-            )
-        } else {
-            CellAnswer::Seed(self.local[self.candidates[cell.first as usize] as usize])
+            return CellAnswer::Seed(cell.first);
+        }
+        let range = cell.first as usize..(cell.first + cell.count) as usize;
+        if !inside {
+            return CellAnswer::Seed(self.local[self.candidates[range.start] as usize]);
+        }
+        let (lo, hi) = cell_box(self.origin, self.size, at, self.mesh_scale);
+        let from_centre = (p - (lo + hi) * 0.5).length();
+        let mut best: Option<(TrianglePoint, u32)> = None;
+        let mut best_d2 = f64::INFINITY;
+        let mut limit = f64::INFINITY;
+        for (&index, &centre_distance) in self.candidates[range.clone()]
+            .iter()
+            .zip(&self.centre_distance[range])
+        {
+            if centre_distance as f64 > limit {
+                break;
+            }
+            let t = &self.listed[index as usize];
+            let [a, b, c] = t.vertices;
+            let q = closest_point_on_triangle(p, a, b, c);
+            let d2 = (p - q.point).length_squared();
+            // The brute force's rule: least computed `d²`, then least face id.
+            if d2 < best_d2 || (d2 == best_d2 && best.is_some_and(|(_, b)| t.prim < b)) {
+                best_d2 = d2;
+                best = Some((q, t.prim));
+                limit = (d2.sqrt() + from_centre) * (1.0 + 1e-12) + 2.0 * self.delta;
+            }
+        }
+        match best {
+            Some((q, prim)) => CellAnswer::Nearest(q, best_d2, prim),
+            // Not reached: lists are never empty.
+            None => CellAnswer::Seed(self.local[0]),
         }
     }
 
@@ -243,24 +290,33 @@ const PROBE_CELLS: usize = 512;
 /// Relative growth of a cell on each side before its list is made (see the module's notes).
 const CELL_GROWTH: f64 = 1e-6;
 
-/// The candidates of cell `at` (`Ok`, sorted by local id), or its seed when they are more than
-/// `limit` (`Err`); `None` only for an empty mesh.
+/// The box of cell `at`, grown by [`CELL_GROWTH`] of its size and `10⁻¹²` of the coordinates on
+/// every side (the same floats wherever it is computed: the lists' centre is the query's).
+#[inline]
+fn cell_box(origin: DVec3, size: f64, at: [usize; 3], mesh_scale: f64) -> (DVec3, DVec3) {
+    let at = DVec3::new(at[0] as f64, at[1] as f64, at[2] as f64);
+    let (lo, hi) = (origin + at * size, origin + (at + DVec3::ONE) * size);
+    let scale = lo.abs().max(hi.abs()).max_element().max(mesh_scale);
+    let grow = size * CELL_GROWTH + scale * 1e-12;
+    (lo - DVec3::splat(grow), hi + DVec3::splat(grow))
+}
+
+/// The candidates of cell `at` with their computed distances from its centre rounded down
+/// (`Ok`, nearest first), or its seed when they are more than `limit` (`Err`); `None` only
+/// for an empty mesh.
 fn cell_list(
     search: &impl NearestTriangles,
     origin: DVec3,
     size: f64,
     at: [usize; 3],
     limit: usize,
-) -> Option<Result<Vec<u32>, u32>> {
-    let at = DVec3::new(at[0] as f64, at[1] as f64, at[2] as f64);
-    let (lo, hi) = (origin + at * size, origin + (at + DVec3::ONE) * size);
+) -> Option<Result<Vec<(u32, f32)>, u32>> {
+    let (lo, hi) = cell_box(origin, size, at, search.mesh_scale());
     let scale = lo
         .abs()
         .max(hi.abs())
         .max_element()
         .max(search.mesh_scale());
-    let grow = size * CELL_GROWTH + scale * 1e-12;
-    let (lo, hi) = (lo - DVec3::splat(grow), hi + DVec3::splat(grow));
     let centre = (lo + hi) * 0.5;
     let seed = search.nearest(centre)?;
     let corners = (0..8).map(|k| {
@@ -281,10 +337,27 @@ fn cell_list(
     let radius = (farthest + half_diagonal + 4.0 * delta) * (1.0 + 1e-12);
     Some(match search.within(centre, radius * radius, limit) {
         // (Never empty: the seed is within `farthest` of the centre.)
-        Some(mut list) if !list.is_empty() => {
-            list.sort_unstable();
+        Some(list) if !list.is_empty() => {
+            let mut list: Vec<(u32, f32)> = list
+                .into_iter()
+                .map(|local| {
+                    let d = search.distance_squared(centre, local).sqrt();
+                    (local, f32_below(d))
+                })
+                .collect();
+            list.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
             Ok(list)
         }
         _ => Err(seed),
     })
+}
+
+/// The largest f32 not above `x` (`x ≥ 0`).
+fn f32_below(x: f64) -> f32 {
+    let near = x as f32;
+    if near as f64 > x {
+        near.next_down()
+    } else {
+        near
+    }
 }

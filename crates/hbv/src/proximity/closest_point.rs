@@ -8,7 +8,7 @@ use super::candidate_grid::{
     CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, NearestTriangles,
 };
 use super::node_frame::FRAME_SHRINK;
-use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
+use super::point_triangle::closest_point_on_triangle;
 use super::search_tree::{SearchTree, SearchTreeConfig};
 use crate::bvh::morton::morton_code;
 use crate::bvh::BuildTree;
@@ -169,28 +169,13 @@ impl ClosestPointTree {
             return None;
         }
         match grid.answer(p) {
-            CellAnswer::Candidates(listed, list) => {
-                // The brute force over the list: least computed `d²`, then least face id.
-                let mut best: Option<(TrianglePoint, u32)> = None;
-                let mut best_d2 = f64::INFINITY;
-                for &index in list {
-                    let t = &listed[index as usize];
-                    let [a, b, c] = t.vertices;
-                    let q = closest_point_on_triangle(p, a, b, c);
-                    let d2 = (p - q.point).length_squared();
-                    if d2 < best_d2 || (d2 == best_d2 && best.is_some_and(|(_, b)| t.prim < b)) {
-                        best_d2 = d2;
-                        best = Some((q, t.prim));
-                    }
-                }
-                best.map(|(q, prim)| ClosestPoint {
-                    point: q.point,
-                    distance: best_d2.sqrt(),
-                    prim,
-                    u: q.u,
-                    v: q.v,
-                })
-            }
+            CellAnswer::Nearest(q, d2, prim) => Some(ClosestPoint {
+                point: q.point,
+                distance: d2.sqrt(),
+                prim,
+                u: q.u,
+                v: q.v,
+            }),
             CellAnswer::Seed(seed) => self.search(p, Some(seed), stack).map(|(c, _)| c),
         }
     }
