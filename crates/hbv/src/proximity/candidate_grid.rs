@@ -54,7 +54,7 @@ impl Default for CandidateGridConfig {
     fn default() -> Self {
         Self {
             cells: 32_768,
-            max_candidates: 8,
+            max_candidates: 16,
             margin: 0.25,
             min_listing: 0.5,
         }
@@ -218,10 +218,13 @@ impl CandidateGrid {
     /// says: an answer only for a point inside the grid.
     ///
     /// The cell's list is tried nearest to the centre `c` first, and ends at the first triangle
-    /// `t` whose rounded-down distance from the centre `l_t` exceeds
-    /// `(D̃_best + |p - c|)(1 + 10⁻¹²) + 2δ`: then
+    /// `t` whose rounded-down distance from the centre `l_t` leaves
+    /// `g = l_t - |p - c|(1 + 10⁻¹²) - 3δ > 0` with `g² > d̃²_best (1 + 10⁻¹²)` (no square root
+    /// of the best on the way): then
     /// `D̃(p,t) ≥ D(p,t) - δ ≥ D(c,t) - |p - c| - δ ≥ l_t - |p - c| - 2δ > D̃_best`, so neither it
-    /// nor any later one (their `l` are larger) is as near as the best.
+    /// nor any later one (their `l` are larger) is as near as the best. (The third `δ` and the
+    /// relative `10⁻¹²` cover the rounding of `g`, `g²` and `|p - c|`, each below `10⁻¹⁵` of the
+    /// grid's coordinates.)
     #[inline]
     pub fn answer(&self, p: DVec3) -> CellAnswer {
         let q = (p - self.origin) * (1.0 / self.size);
@@ -248,15 +251,15 @@ impl CandidateGrid {
             return CellAnswer::Seed(self.local[self.candidates[range.start] as usize]);
         }
         let (lo, hi) = cell_box(self.origin, self.size, at, self.mesh_scale);
-        let from_centre = (p - (lo + hi) * 0.5).length();
+        let reach = (p - (lo + hi) * 0.5).length() * (1.0 + 1e-12) + 3.0 * self.delta;
         let mut best: Option<(TrianglePoint, u32)> = None;
         let mut best_d2 = f64::INFINITY;
-        let mut limit = f64::INFINITY;
         for (&index, &centre_distance) in self.candidates[range.clone()]
             .iter()
             .zip(&self.centre_distance[range])
         {
-            if centre_distance as f64 > limit {
+            let gap = centre_distance as f64 - reach;
+            if gap > 0.0 && gap * gap > best_d2 * (1.0 + 1e-12) {
                 break;
             }
             let t = &self.listed[index as usize];
@@ -267,7 +270,6 @@ impl CandidateGrid {
             if d2 < best_d2 || (d2 == best_d2 && best.is_some_and(|(_, b)| t.prim < b)) {
                 best_d2 = d2;
                 best = Some((q, t.prim));
-                limit = (d2.sqrt() + from_centre) * (1.0 + 1e-12) + 2.0 * self.delta;
             }
         }
         match best {
