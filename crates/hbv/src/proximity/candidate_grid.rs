@@ -24,9 +24,9 @@
 //! previous point in a Morton-sorted batch, without the sort. Points outside the grid are seeded
 //! from the nearest cell.
 //!
-//! Cells are enlarged by a millionth of their size (and a `10⁻¹²` of the coordinates) on every
-//! side before the lists are made, so that a point the index arithmetic rounds into a
-//! neighbouring cell still lies in that cell's box.
+//! Cells are enlarged by a millionth of their size (and a `10⁻¹²` of the grid's largest
+//! coordinate) on every side before the lists are made, so that a point the index arithmetic
+//! rounds into a neighbouring cell still lies in that cell's box.
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -100,8 +100,8 @@ pub(super) struct CandidateGrid {
     centre_distance: Vec<f32>,
     /// The rounding margin `δ` (`box_bound::rounding_margin`) of every point of the grid.
     delta: f64,
-    /// The largest coordinate magnitude of the mesh's triangles.
-    mesh_scale: f64,
+    /// How much each cell's box is grown on every side (module notes).
+    grow: f64,
     /// The triangles listed by some cell.
     listed: Vec<ListedTriangle>,
     /// The search tree's local id of each of `listed` (cells that seed a search hold local ids).
@@ -147,15 +147,21 @@ impl CandidateGrid {
             .map(|e| ((e / size).ceil() as usize).clamp(1, 1024));
         let count = dims[0] * dims[1] * dims[2];
         let origin = lo;
+        // The largest coordinate of the grid (whose cells may reach a cell past `extent`) or
+        // the mesh.
+        let far = (origin.abs().max((origin + extent).abs() + size))
+            .max_element()
+            .max(search.mesh_scale());
+        let grow = size * CELL_GROWTH + far * 1e-12;
         let list_at = |index: usize| {
             let at = [
                 index % dims[0],
                 index / dims[0] % dims[1],
                 index / (dims[0] * dims[1]),
-            ];
-            cell_list(search, origin, size, at, config.max_candidates)
+            ]
+            .map(|k| k as u32);
+            cell_list(search, (origin, size, grow), at, config.max_candidates)
         };
-        let far = (origin.abs().max((origin + extent).abs() + size)).max_element();
         // A grid whose cells mostly seed searches is slower than none (batches are then sorted
         // in Morton order, which keeps the tree's nodes in cache from one query to the next):
         // a sample of cells decides first.
@@ -181,8 +187,8 @@ impl CandidateGrid {
             cells: Vec::with_capacity(count),
             candidates: Vec::new(),
             centre_distance: Vec::new(),
-            delta: (far * 2.0).max(search.mesh_scale()) * f64::powi(2.0, -32),
-            mesh_scale: search.mesh_scale(),
+            delta: far * 2.0 * f64::powi(2.0, -32),
+            grow,
             listed: Vec::new(),
             local: Vec::new(),
         };
@@ -231,15 +237,15 @@ impl CandidateGrid {
         let mut index = 0;
         let mut inside = true;
         let mut stride = 1;
-        let mut at = [0usize; 3];
+        let mut at = [0u32; 3];
         for (axis, &dim) in self.dims.iter().enumerate() {
             let x = q[axis];
-            // `as usize` truncates (the floor for x ≥ 0) and saturates: negative values to 0.
-            // (Not `floor`: without SSE4.1 it is a library call.)
-            let k = x as usize;
-            inside &= x >= 0.0 && k < dim;
-            at[axis] = k.min(dim - 1);
-            index += at[axis] * stride;
+            // `as i32` truncates (the floor for x ≥ 0) and saturates; one instruction and a
+            // fix-up, where `as usize` and `floor` (a library call without SSE4.1) cost more.
+            let k = (x as i32).clamp(0, dim as i32 - 1);
+            inside &= x >= 0.0 && x < dim as f64;
+            at[axis] = k as u32;
+            index += k as usize * stride;
             stride *= dim;
         }
         let cell = self.cells[index];
@@ -250,7 +256,7 @@ impl CandidateGrid {
         if !inside {
             return CellAnswer::Seed(self.local[self.candidates[range.start] as usize]);
         }
-        let (lo, hi) = cell_box(self.origin, self.size, at, self.mesh_scale);
+        let (lo, hi) = cell_box((self.origin, self.size, self.grow), at);
         let reach = (p - (lo + hi) * 0.5).length() * (1.0 + 1e-12) + 3.0 * self.delta;
         let mut best: Option<(TrianglePoint, u32)> = None;
         let mut best_d2 = f64::INFINITY;
@@ -292,14 +298,16 @@ const PROBE_CELLS: usize = 512;
 /// Relative growth of a cell on each side before its list is made (see the module's notes).
 const CELL_GROWTH: f64 = 1e-6;
 
-/// The box of cell `at`, grown by [`CELL_GROWTH`] of its size and `10⁻¹²` of the coordinates on
-/// every side (the same floats wherever it is computed: the lists' centre is the query's).
+/// The grid's origin, cell size and growth of each cell on every side ([`CELL_GROWTH`] of the
+/// size and `10⁻¹²` of the grid's largest coordinate).
+type Layout = (DVec3, f64, f64);
+
+/// The box of cell `at`, grown (the same floats wherever it is computed: the lists' centre is
+/// the query's).
 #[inline]
-fn cell_box(origin: DVec3, size: f64, at: [usize; 3], mesh_scale: f64) -> (DVec3, DVec3) {
+fn cell_box((origin, size, grow): Layout, at: [u32; 3]) -> (DVec3, DVec3) {
     let at = DVec3::new(at[0] as f64, at[1] as f64, at[2] as f64);
     let (lo, hi) = (origin + at * size, origin + (at + DVec3::ONE) * size);
-    let scale = lo.abs().max(hi.abs()).max_element().max(mesh_scale);
-    let grow = size * CELL_GROWTH + scale * 1e-12;
     (lo - DVec3::splat(grow), hi + DVec3::splat(grow))
 }
 
@@ -308,12 +316,11 @@ fn cell_box(origin: DVec3, size: f64, at: [usize; 3], mesh_scale: f64) -> (DVec3
 /// for an empty mesh.
 fn cell_list(
     search: &impl NearestTriangles,
-    origin: DVec3,
-    size: f64,
-    at: [usize; 3],
+    layout: Layout,
+    at: [u32; 3],
     limit: usize,
 ) -> Option<Result<Vec<(u32, f32)>, u32>> {
-    let (lo, hi) = cell_box(origin, size, at, search.mesh_scale());
+    let (lo, hi) = cell_box(layout, at);
     let scale = lo
         .abs()
         .max(hi.abs())
