@@ -8,7 +8,7 @@ use super::candidate_grid::{
     CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, NearestTriangles,
 };
 use super::node_frame::FRAME_SHRINK;
-use super::point_triangle::closest_point_on_triangle;
+use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
 use super::search_tree::{SearchTree, SearchTreeConfig};
 use crate::bvh::morton::morton_code;
 use crate::bvh::BuildTree;
@@ -104,7 +104,8 @@ struct Pending {
 
 /// The best triangle so far of one search.
 struct Best {
-    found: Option<(ClosestPoint, u32)>,
+    /// The nearest point so far, its triangle's face id and local id (`4 × packet + lane`).
+    found: Option<(TrianglePoint, u32, u32)>,
     d2: f64,
     /// [`prune_threshold`] of `d2`.
     threshold: f32,
@@ -395,7 +396,17 @@ impl ClosestPointTree {
                 next = Some(near[count - 1]);
             }
         }
-        best.found
+        // One square root per search, for the answer only.
+        best.found.map(|(q, prim, local)| {
+            let answer = ClosestPoint {
+                point: q.point,
+                distance: best.d2.sqrt(),
+                prim,
+                u: q.u,
+                v: q.v,
+            };
+            (answer, local)
+        })
     }
 
     /// Tests the triangles of one leaf: each packet's four box bounds first, the exact routine
@@ -439,18 +450,11 @@ impl ClosestPointTree {
         let q = closest_point_on_triangle(p, a, b, c);
         let d2 = (p - q.point).length_squared();
         let closer =
-            d2 < best.d2 || (d2 == best.d2 && best.found.is_some_and(|(b, _)| prim < b.prim));
+            d2 < best.d2 || (d2 == best.d2 && best.found.is_some_and(|(_, b, _)| prim < b));
         if closer {
             best.d2 = d2;
             best.threshold = prune_threshold(d2, best.delta);
-            let found = ClosestPoint {
-                point: q.point,
-                distance: d2.sqrt(),
-                prim,
-                u: q.u,
-                v: q.v,
-            };
-            best.found = Some((found, local));
+            best.found = Some((q, prim, local));
         }
     }
 }
