@@ -156,3 +156,35 @@ def test_closest_point_is_the_same_on_any_tree_and_thread_count():
     for i in rng.choice(len(points), 100, replace=False):
         dist = np.linalg.norm(closest_on_triangles(points[i], tris) - points[i], axis=1)
         assert abs(want["distance"][i] - dist.min()) <= 1e-12 * max(1.0, dist.min()), i
+
+
+def test_closest_point_in_a_room_of_large_walls():
+    """A room of axis-aligned walls (the candidate grid's case: cells list the few triangles
+    that can be nearest), with one face listed twice (exact ties go to the smaller id): lattice
+    points on walls, edges, corners and in between, far points and a NaN point, against the
+    float64 brute force."""
+    corners = np.array([[x, y, z] for z in (-1.0, 1.0) for y in (-1.0, 1.0) for x in (-1.0, 1.0)])
+    quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+    faces = [[a, b, c] for a, b, c, d in quads] + [[a, c, d] for a, b, c, d in quads]
+    block = corners * [0.2, 0.3, 0.25] + [0.3, -0.4, 0.1]
+    faces += [[i + 8 for i in t] for t in faces]
+    faces.append(faces[3])
+    v = np.r_[corners, block] * 3.5 + [10.0, -2.0, 0.5]
+    mesh = hbv.Mesh(v, np.array(faces))
+    lattice = np.stack(np.meshgrid(*[np.linspace(-1.25, 1.25, 11)] * 3), -1).reshape(-1, 3)
+    points = np.r_[lattice * 3.5 + [10.0, -2.0, 0.5], [[80.0, 1.0, 2.0], [np.nan, 0.0, 0.0]]]
+    tris = triangles_of(v, np.array(faces))
+    got = hbv.BVH(mesh).closest_point(points, threads=2)
+    assert got["prim"][-1] == -1 and np.isinf(got["distance"][-1]) and np.isnan(got["point"][-1]).all()
+    for i, p in enumerate(points[:-1]):
+        dist = np.linalg.norm(closest_on_triangles(p, tris) - p, axis=1)
+        j = int(np.argmin(dist))
+        assert abs(got["distance"][i] - dist[j]) <= 1e-12 * max(1.0, dist[j]), i
+        if np.sort(dist)[1] - dist[j] > 1e-9:
+            assert got["prim"][i] == j, i
+    # Points whose nearest feature is only on the duplicated face never name the copy.
+    assert not (got["prim"] == len(faces) - 1).any()
+    # The same answers on one thread and on all.
+    again = hbv.BVH(mesh).closest_point(points, threads=1)
+    np.testing.assert_array_equal(again["prim"], got["prim"])
+    np.testing.assert_array_equal(again["distance"], got["distance"])

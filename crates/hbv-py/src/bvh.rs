@@ -9,7 +9,7 @@ use hbv::bvh::file::BvhFile;
 use hbv::bvh::layout::Wide8Layout;
 use hbv::bvh::{expected_tests, sah_cost, BuildTree, SahWeights};
 use hbv::glam::DVec3;
-use hbv::proximity::ClosestPointTree;
+use hbv::proximity::{ClosestPointColumns, ClosestPointTree};
 use hbv::{Accelerator, TriangleMesh};
 use numpy::{IntoPyArray, PyArray1, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -275,15 +275,18 @@ impl PyBvh {
         let n = points.len();
         let (mut point, mut distance) = (vec![[0.0f64; 3]; n], vec![0.0f64; n]);
         let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0f64; n], vec![0.0f64; n]);
-        let found =
-            py.detach(|| run_on_threads(threads, || self.closest_tree().closest_points(&points)))?;
-        for (k, found) in found.into_iter().enumerate() {
-            point[k] = found.map_or([f64::NAN; 3], |c| c.point.to_array());
-            distance[k] = found.map_or(f64::INFINITY, |c| c.distance);
-            prim[k] = found.map_or(-1, |c| c.prim as i64);
-            u[k] = found.map_or(0.0, |c| c.u);
-            v[k] = found.map_or(0.0, |c| c.v);
-        }
+        py.detach(|| {
+            run_on_threads(threads, || {
+                let columns = ClosestPointColumns {
+                    point: &mut point,
+                    distance: &mut distance,
+                    prim: &mut prim,
+                    u: &mut u,
+                    v: &mut v,
+                };
+                self.closest_tree().closest_points_into(&points, columns)
+            })
+        })?;
         let point = point.into_flattened();
         let out = PyDict::new(py);
         out.set_item("point", point.into_pyarray(py).reshape([n, 3])?)?;

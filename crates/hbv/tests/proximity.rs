@@ -9,7 +9,10 @@ use hbv::bvh::BuildTree;
 use hbv::geometry::Aabb;
 use hbv::glam::{DVec3, Vec3};
 use hbv::mesh::procedural::{icosphere, torus};
-use hbv::proximity::{closest_point_brute_force, contains, ClosestPointTree, SearchTreeConfig};
+use hbv::proximity::{
+    closest_point_brute_force, contains, CandidateGridConfig, ClosestPointColumns,
+    ClosestPointTree, SearchTreeConfig,
+};
 use hbv::{BruteForce, TriangleMesh};
 use proptest::prelude::*;
 
@@ -80,7 +83,33 @@ fn assert_closest_points_agree(
     leaf: usize,
     points: &[Vec3],
 ) -> Result<(), TestCaseError> {
-    assert_closest_points_agree_with(mesh, order, leaf, SearchTreeConfig::default(), points)
+    assert_closest_points_agree_with(
+        mesh,
+        order,
+        leaf,
+        SearchTreeConfig::default(),
+        CandidateGridConfig::default(),
+        points,
+    )
+}
+
+/// Candidate grids of every kind: none, one cell to a few hundred (large cells: few list their
+/// triangles, the rest seed tree searches), fine ones, any list length, tight or wide margins.
+fn grid_config() -> impl Strategy<Value = CandidateGridConfig> {
+    (
+        prop_oneof![Just(0usize), 1usize..300, Just(4096)],
+        prop_oneof![1usize..4, 4usize..64],
+        prop_oneof![Just(0.0f64), Just(0.25), 0.0f64..2.0],
+        prop_oneof![Just(0.0f64), Just(0.5)],
+    )
+        .prop_map(
+            |(cells, max_candidates, margin, min_listing)| CandidateGridConfig {
+                cells,
+                max_candidates,
+                margin,
+                min_listing,
+            },
+        )
 }
 
 fn assert_closest_points_agree_with(
@@ -88,6 +117,7 @@ fn assert_closest_points_agree_with(
     order: hbv::bvh::build::InsertionOrder,
     leaf: usize,
     config: SearchTreeConfig,
+    grid: CandidateGridConfig,
     points: &[Vec3],
 ) -> Result<(), TestCaseError> {
     let insertion = InsertionBuilder::new(InsertionConfig {
@@ -98,8 +128,13 @@ fn assert_closest_points_agree_with(
     let mut sah_config = BinnedSahConfig::default();
     sah_config.leaf.max_leaf_size = leaf;
     let sah = BinnedSahBuilder::new(sah_config).build(mesh);
-    for (name, tree) in [("insertion", insertion), ("binned-sah", sah)] {
-        let search = ClosestPointTree::with_config(&tree, mesh, config);
+    // The insertion tree with the grid asked for, the SAH tree with the default one (32,768
+    // cells: the product's).
+    for (name, tree, grid) in [
+        ("insertion", insertion, grid),
+        ("binned-sah", sah, CandidateGridConfig::default()),
+    ] {
+        let search = ClosestPointTree::with_grid(&tree, mesh, config, grid);
         for (i, p) in points.iter().enumerate() {
             let want = closest_point_brute_force(mesh, p.as_dvec3());
             let got = search.closest_point(*p);
@@ -111,6 +146,45 @@ fn assert_closest_points_agree_with(
         for (i, got) in search.closest_points(&as_f64).into_iter().enumerate() {
             let want = closest_point_brute_force(mesh, as_f64[i]);
             prop_assert_eq!(want, got, "{} batch: point {} {:?}", name, i, points[i]);
+        }
+        // The column form: the same answers, NaN, +inf, -1, 0, 0 for none.
+        let n = points.len();
+        let (mut point, mut distance) = (vec![[0.0; 3]; n], vec![0.0; n]);
+        let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0; n], vec![0.0; n]);
+        search.closest_points_into(
+            &as_f64,
+            ClosestPointColumns {
+                point: &mut point,
+                distance: &mut distance,
+                prim: &mut prim,
+                u: &mut u,
+                v: &mut v,
+            },
+        );
+        for (i, &p) in as_f64.iter().enumerate() {
+            let row = (point[i], distance[i], prim[i], u[i], v[i]);
+            let want = match closest_point_brute_force(mesh, p) {
+                Some(c) => (c.point.to_array(), c.distance, c.prim as i64, c.u, c.v),
+                None => ([f64::NAN; 3], f64::INFINITY, -1, 0.0, 0.0),
+            };
+            // Compared as bits: NaN rows must match too.
+            let bits = |(q, d, k, u, v): ([f64; 3], f64, i64, f64, f64)| {
+                (
+                    q.map(f64::to_bits),
+                    d.to_bits(),
+                    k,
+                    u.to_bits(),
+                    v.to_bits(),
+                )
+            };
+            prop_assert_eq!(
+                bits(want),
+                bits(row),
+                "{} columns: point {} {:?}",
+                name,
+                i,
+                p
+            );
         }
     }
     Ok(())
@@ -127,9 +201,18 @@ proptest! {
     /// Any leaf size of the search tree (one triangle to whole subtrees of 20), node boxes in
     /// rotated frames or not.
     #[test]
-    fn closest_point_equals_brute_force_at_any_search_leaf_size((mesh, points) in mesh_and_points(soup()), order in order(), leaf in 1usize..9, search_leaf in 1usize..21, rotated_frames in any::<bool>()) {
+    fn closest_point_equals_brute_force_at_any_search_leaf_size((mesh, points) in mesh_and_points(soup()), order in order(), leaf in 1usize..9, search_leaf in 1usize..21, rotated_frames in any::<bool>(), grid in grid_config()) {
         let config = SearchTreeConfig { leaf_triangles: search_leaf, rotated_frames };
-        assert_closest_points_agree_with(&mesh, order, leaf, config, &points)?;
+        assert_closest_points_agree_with(&mesh, order, leaf, config, grid, &points)?;
+    }
+
+    /// Rooms of large axis-aligned walls and boxes (the candidate grid's case: most cells list
+    /// two to four triangles), with duplicated faces (exact ties: the smallest id wins),
+    /// degenerate triangles and points on the grid's cell boundaries, the walls, their edges and
+    /// corners.
+    #[test]
+    fn room_closest_point_equals_brute_force((mesh, points) in room_and_points(), order in order(), grid in grid_config()) {
+        assert_closest_points_agree_with(&mesh, order, 4, SearchTreeConfig::default(), grid, &points)?;
     }
 
     /// Small triangles far from the origin (coordinates around 10⁷, where an f32 step is 1):
@@ -194,6 +277,76 @@ fn tilted_sheet() -> impl Strategy<Value = TriangleMesh> {
                 }
             }
             TriangleMesh::new(positions, faces).unwrap()
+        })
+}
+
+/// A room as a modelled scene has it: an axis-aligned box of walls (two triangles each), one to
+/// three axis-aligned blocks inside, some faces listed twice (exact ties), a degenerate
+/// triangle, all scaled and moved (to huge coordinates too); and query points from a lattice
+/// of eighths of the room (on walls, edges, corners, and on the boundaries of grids whose cells
+/// divide the room evenly), a hair off them, random ones and far ones.
+fn room_and_points() -> impl Strategy<Value = (TriangleMesh, Vec<Vec3>)> {
+    let block = (point(0.8), 0.05f32..0.4, 0.05f32..0.4, 0.05f32..0.4);
+    (
+        prop_oneof![Just(1.0f32), scale()],
+        prop_oneof![Just(Vec3::ZERO), point(10.0), point(1e7)],
+        prop::collection::vec(block, 1..4),
+        prop::collection::vec(0usize..40, 0..4),
+        prop::collection::vec((0u32..9, 0u32..9, 0u32..9, 0usize..4), 1..40),
+        prop::collection::vec(point(1.5), 0..8),
+    )
+        .prop_map(|(s, shift, blocks, doubled, lattice, random)| {
+            let mut tris: Vec<[Vec3; 3]> = Vec::new();
+            let mut cuboid = |lo: Vec3, hi: Vec3| {
+                let c = |i: u32| {
+                    Vec3::new(
+                        if i & 1 == 0 { lo.x } else { hi.x },
+                        if i & 2 == 0 { lo.y } else { hi.y },
+                        if i & 4 == 0 { lo.z } else { hi.z },
+                    )
+                };
+                for [a, b, d, e] in [
+                    [0, 1, 3, 2],
+                    [4, 6, 7, 5],
+                    [0, 4, 5, 1],
+                    [2, 3, 7, 6],
+                    [0, 2, 6, 4],
+                    [1, 5, 7, 3],
+                ] {
+                    tris.push([c(a), c(b), c(d)]);
+                    tris.push([c(a), c(d), c(e)]);
+                }
+            };
+            cuboid(Vec3::splat(-1.0), Vec3::splat(1.0));
+            for (centre, x, y, z) in blocks {
+                let half = Vec3::new(x, y, z);
+                cuboid(centre - half, centre + half);
+            }
+            for k in doubled {
+                let t = tris[k % tris.len()];
+                tris.push(t);
+            }
+            tris.push([Vec3::ZERO, Vec3::X, Vec3::X * 2.0]);
+            let place = |v: Vec3| v * s + shift;
+            let positions = tris.iter().flatten().map(|&v| place(v)).collect();
+            let faces = (0..tris.len() as u32)
+                .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+                .collect();
+            let mut points: Vec<Vec3> = lattice
+                .into_iter()
+                .map(|(i, j, k, nudge)| {
+                    let p = place(Vec3::new(i as f32, j as f32, k as f32) * 0.25 - 1.0);
+                    match nudge {
+                        0 => p,
+                        1 => Vec3::new(p.x.next_up(), p.y, p.z.next_down()),
+                        2 => p + Vec3::splat(1e-4 * s),
+                        _ => place(Vec3::new(i as f32, j as f32, k as f32) * 0.3 - 1.2),
+                    }
+                })
+                .collect();
+            points.extend(random.into_iter().map(place));
+            points.push(place(Vec3::new(40.0, -3.0, 0.5)));
+            (TriangleMesh::new(positions, faces).unwrap(), points)
         })
 }
 
@@ -342,4 +495,35 @@ fn closest_point_on_a_torus_is_on_its_tube() {
     assert!(ClosestPointTree::new(&tree, &empty)
         .closest_point_f64(DVec3::ZERO)
         .is_none());
+}
+
+/// On a room of large walls most cells of the default grid list their candidates (the fast
+/// path is the one exercised), and a lattice of points through walls, edges, corners and
+/// cell boundaries gets the brute force's answers.
+#[test]
+fn room_grid_lists_candidates_and_agrees() {
+    use proptest::strategy::ValueTree;
+    let mut runner = proptest::test_runner::TestRunner::deterministic();
+    let (mesh, _) = room_and_points().new_tree(&mut runner).unwrap().current();
+    let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+    let search = ClosestPointTree::new(&tree, &mesh);
+    let (cells, listing, _) = search.grid_summary();
+    assert!(
+        cells > 20_000 && listing * 10 > cells * 8,
+        "{cells} cells, {listing} listing"
+    );
+    let b = mesh.bounds();
+    for i in 0..=32 {
+        for j in 0..=32 {
+            for k in [0, 5, 16, 31, 32] {
+                let t = Vec3::new(i as f32, j as f32, k as f32) / 32.0;
+                let p = b.min - (b.max - b.min) * 0.25 + (b.max - b.min) * 1.5 * t;
+                assert_eq!(
+                    search.closest_point(p),
+                    closest_point_brute_force(&mesh, p.as_dvec3()),
+                    "{p:?}"
+                );
+            }
+        }
+    }
 }

@@ -4,8 +4,11 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::box_bound::{prune_threshold, rounding_margin, PointBracket};
+use super::candidate_grid::{
+    CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, NearestTriangles,
+};
 use super::node_frame::FRAME_SHRINK;
-use super::point_triangle::closest_point_on_triangle;
+use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
 use super::search_tree::{SearchTree, SearchTreeConfig};
 use crate::bvh::morton::morton_code;
 use crate::bvh::BuildTree;
@@ -44,6 +47,50 @@ pub struct ClosestPoint {
 #[derive(Clone, Debug)]
 pub struct ClosestPointTree {
     tree: SearchTree,
+    /// Candidate lists and seeds per cell of the space around the mesh (`None`: no grid, or one
+    /// whose cells would mostly seed searches; batches are then sorted and seeded from their
+    /// neighbours).
+    grid: Option<CandidateGrid>,
+}
+
+/// Output columns for [`ClosestPointTree::closest_points_into`], one entry per query point:
+/// the nearest point, its distance, the triangle (-1 for none) and the barycentrics `u`, `v`.
+pub struct ClosestPointColumns<'a> {
+    pub point: &'a mut [[f64; 3]],
+    pub distance: &'a mut [f64],
+    pub prim: &'a mut [i64],
+    pub u: &'a mut [f64],
+    pub v: &'a mut [f64],
+}
+
+/// One run's slices of the five columns.
+type ColumnRun<'r> = (
+    &'r mut [[f64; 3]],
+    &'r mut [f64],
+    &'r mut [i64],
+    &'r mut [f64],
+    &'r mut [f64],
+);
+
+/// Writes answer `found` as row `k` of the columns.
+#[inline]
+fn write_row(found: Option<ClosestPoint>, k: usize, (point, distance, prim, u, v): ColumnRun<'_>) {
+    match found {
+        Some(c) => {
+            point[k] = c.point.to_array();
+            distance[k] = c.distance;
+            prim[k] = c.prim as i64;
+            u[k] = c.u;
+            v[k] = c.v;
+        }
+        None => {
+            point[k] = [f64::NAN; 3];
+            distance[k] = f64::INFINITY;
+            prim[k] = -1;
+            u[k] = 0.0;
+            v[k] = 0.0;
+        }
+    }
 }
 
 /// One pending child of the search: its lower bound, and a node index (`triangles == 0`) or a
@@ -57,7 +104,8 @@ struct Pending {
 
 /// The best triangle so far of one search.
 struct Best {
-    found: Option<(ClosestPoint, u32)>,
+    /// The nearest point so far, its triangle's face id and local id (`4 × packet + lane`).
+    found: Option<(TrianglePoint, u32, u32)>,
     d2: f64,
     /// [`prune_threshold`] of `d2`.
     threshold: f32,
@@ -72,11 +120,32 @@ impl ClosestPointTree {
         Self::with_config(tree, mesh, SearchTreeConfig::default())
     }
 
-    /// [`ClosestPointTree::new`] with the leaf size of `config`.
+    /// [`ClosestPointTree::new`] with the leaf size of `config` (and the default grid).
     pub fn with_config(tree: &BuildTree, mesh: &TriangleMesh, config: SearchTreeConfig) -> Self {
-        Self {
+        Self::with_grid(tree, mesh, config, CandidateGridConfig::default())
+    }
+
+    /// [`ClosestPointTree::with_config`] with the candidate grid of `grid` (module
+    /// `candidate_grid`; `grid.cells == 0` for none).
+    pub fn with_grid(
+        tree: &BuildTree,
+        mesh: &TriangleMesh,
+        config: SearchTreeConfig,
+        grid: CandidateGridConfig,
+    ) -> Self {
+        let mut search = Self {
             tree: SearchTree::new(tree, mesh, config),
-        }
+            grid: None,
+        };
+        let b = mesh.bounds();
+        search.grid = CandidateGrid::new(&search, (b.min.as_dvec3(), b.max.as_dvec3()), grid);
+        search
+    }
+
+    /// The candidate grid's number of cells, of cells listing their candidates, and of
+    /// candidates listed (zeros without a grid).
+    pub fn grid_summary(&self) -> (usize, usize, usize) {
+        self.grid.as_ref().map_or((0, 0, 0), CandidateGrid::summary)
     }
 
     /// The nearest surface point to `point`; `None` for an empty tree or a point with a NaN or
@@ -87,13 +156,38 @@ impl ClosestPointTree {
 
     /// [`ClosestPointTree::closest_point`] for an f64 query point.
     pub fn closest_point_f64(&self, p: DVec3) -> Option<ClosestPoint> {
-        self.search(p, None, &mut Vec::new()).map(|(c, _)| c)
+        self.query(p, &mut Vec::new())
+    }
+
+    /// One query: from the grid's candidates, or a tree search from the grid's seed (or no seed
+    /// without a grid).
+    #[inline]
+    fn query(&self, p: DVec3, stack: &mut Vec<Pending>) -> Option<ClosestPoint> {
+        let Some(grid) = &self.grid else {
+            return self.search(p, None, stack).map(|(c, _)| c);
+        };
+        if !p.is_finite() {
+            return None;
+        }
+        match grid.answer(p) {
+            CellAnswer::Nearest(q, d2, prim) => Some(ClosestPoint {
+                point: q.point,
+                distance: d2.sqrt(),
+                prim,
+                u: q.u,
+                v: q.v,
+            }),
+            CellAnswer::Seed(seed) => self.search(p, Some(seed), stack).map(|(c, _)| c),
+        }
     }
 
     /// The nearest surface point to each of `points` (as [`ClosestPointTree::closest_point_f64`],
     /// the same answers), in parallel on the current rayon pool.
     ///
-    /// The points are searched in Morton order (Morton 1966: bits of the quantized x, y, z
+    /// With a candidate grid (meshes of few, large triangles; module `candidate_grid`) each
+    /// point is answered from its cell: the brute force over the cell's list, or a search seeded
+    /// with the cell's triangle. Otherwise the points are searched in Morton order (Morton
+    /// 1966: bits of the quantized x, y, z
     /// interleaved, so that points near in the order are near in space), in runs of
     /// [`Self::RUN`]; each search but a run's first starts with the previous point's nearest
     /// triangle as its best so far. The distance to a neighbour's nearest triangle is a tight
@@ -102,42 +196,118 @@ impl ClosestPointTree {
     /// every triangle it does not prune, pruning stays conservative, and the seed triangle's
     /// `d²` is computed exactly as when its leaf is reached.
     pub fn closest_points(&self, points: &[DVec3]) -> Vec<Option<ClosestPoint>> {
+        if self.grid.is_some() {
+            let mut out = vec![None; points.len()];
+            out.par_chunks_mut(Self::RUN)
+                .zip(points.par_chunks(Self::RUN))
+                .for_each(|(out, run)| {
+                    let mut stack = Vec::with_capacity(64);
+                    for (o, &p) in out.iter_mut().zip(run) {
+                        *o = self.query(p, &mut stack);
+                    }
+                });
+            return out;
+        }
+        let (order, sorted) = self.search_in_morton_order(points);
+        let mut out = vec![None; points.len()];
+        for (found, &key) in sorted.into_iter().zip(&order) {
+            out[key as u32 as usize] = found;
+        }
+        out
+    }
+
+    /// [`ClosestPointTree::closest_points`] written column by column into `out`, as array
+    /// libraries (NumPy) hold answers, without a list of them in between; a point without an
+    /// answer gets NaN, +∞, -1, 0, 0. Panics if a column's length is not the number of points.
+    pub fn closest_points_into(&self, points: &[DVec3], out: ClosestPointColumns<'_>) {
+        let n = points.len();
+        let ClosestPointColumns {
+            point,
+            distance,
+            prim,
+            u,
+            v,
+        } = out;
+        assert!(
+            [point.len(), distance.len(), prim.len(), u.len(), v.len()] == [n; 5],
+            "closest_points_into: every column must have one entry per point"
+        );
+        let columns = (
+            point.par_chunks_mut(Self::RUN),
+            distance.par_chunks_mut(Self::RUN),
+            prim.par_chunks_mut(Self::RUN),
+            u.par_chunks_mut(Self::RUN),
+            v.par_chunks_mut(Self::RUN),
+        );
+        if self.grid.is_some() {
+            (columns, points.par_chunks(Self::RUN))
+                .into_par_iter()
+                .for_each(|((point, distance, prim, u, v), run)| {
+                    let mut stack = Vec::with_capacity(64);
+                    for (k, &p) in run.iter().enumerate() {
+                        let found = self.query(p, &mut stack);
+                        write_row(found, k, (point, distance, prim, u, v));
+                    }
+                });
+            return;
+        }
+        let (order, sorted) = self.search_in_morton_order(points);
+        // Where each point's answer is in `sorted`; then each column is gathered in parallel.
+        let mut rank = vec![0u32; n];
+        for (j, &key) in order.iter().enumerate() {
+            rank[key as u32 as usize] = j as u32;
+        }
+        (columns, rank.par_chunks(Self::RUN))
+            .into_par_iter()
+            .for_each(|((point, distance, prim, u, v), ranks)| {
+                for (k, &j) in ranks.iter().enumerate() {
+                    write_row(sorted[j as usize], k, (point, distance, prim, u, v));
+                }
+            });
+    }
+
+    /// The batch's searches in Morton order (module notes of
+    /// [`ClosestPointTree::closest_points`]): the sort keys (`code << 32 | index`, ascending)
+    /// and the answers in that order.
+    fn search_in_morton_order(&self, points: &[DVec3]) -> (Vec<u64>, Vec<Option<ClosestPoint>>) {
         let bounds = points
             .iter()
             .filter(|p| p.is_finite())
             .fold(Aabb::EMPTY, |b, p| b.union_point(p.as_vec3()));
-        let mut order: Vec<(u64, u32)> = points
+        // 31 bits of the Morton code (10 per axis and one) above the point's index: one u64
+        // to sort.
+        let mut order: Vec<u64> = points
             .par_iter()
             .enumerate()
             .map(|(i, p)| {
                 let code = if p.is_finite() {
-                    morton_code(p.as_vec3(), &bounds)
+                    morton_code(p.as_vec3(), &bounds) >> 32
                 } else {
-                    u64::MAX
+                    u64::MAX >> 33
                 };
-                (code, i as u32)
+                (code << 32) | i as u64
             })
             .collect();
         order.par_sort_unstable();
-        let found: Vec<(u32, Option<ClosestPoint>)> = order
-            .par_chunks(Self::RUN)
-            .flat_map_iter(|run| {
+        // Gathered first: read inside the search loop, each point was a cache miss.
+        let in_order: Vec<DVec3> = order
+            .par_iter()
+            .map(|&key| points[key as u32 as usize])
+            .collect();
+        let mut sorted = vec![None; points.len()];
+        sorted
+            .par_chunks_mut(Self::RUN)
+            .zip(in_order.par_chunks(Self::RUN))
+            .for_each(|(out, run)| {
                 let mut seed = None;
                 let mut stack = Vec::with_capacity(64);
-                run.iter()
-                    .map(|&(_, i)| {
-                        let found = self.search(points[i as usize], seed, &mut stack);
-                        seed = found.map(|(_, local)| local).or(seed);
-                        (i, found.map(|(c, _)| c))
-                    })
-                    .collect::<Vec<_>>()
-            })
-            .collect();
-        let mut out = vec![None; points.len()];
-        for (i, c) in found {
-            out[i as usize] = c;
-        }
-        out
+                for (o, &p) in out.iter_mut().zip(run) {
+                    let found = self.search(p, seed, &mut stack);
+                    seed = found.map(|(_, local)| local).or(seed);
+                    *o = found.map(|(c, _)| c);
+                }
+            });
+        (order, sorted)
     }
 
     /// Points per run of [`ClosestPointTree::closest_points`]: one rayon task, seeded in turn.
@@ -226,7 +396,17 @@ impl ClosestPointTree {
                 next = Some(near[count - 1]);
             }
         }
-        best.found
+        // One square root per search, for the answer only.
+        best.found.map(|(q, prim, local)| {
+            let answer = ClosestPoint {
+                point: q.point,
+                distance: best.d2.sqrt(),
+                prim,
+                u: q.u,
+                v: q.v,
+            };
+            (answer, local)
+        })
     }
 
     /// Tests the triangles of one leaf: each packet's four box bounds first, the exact routine
@@ -270,18 +450,87 @@ impl ClosestPointTree {
         let q = closest_point_on_triangle(p, a, b, c);
         let d2 = (p - q.point).length_squared();
         let closer =
-            d2 < best.d2 || (d2 == best.d2 && best.found.is_some_and(|(b, _)| prim < b.prim));
+            d2 < best.d2 || (d2 == best.d2 && best.found.is_some_and(|(_, b, _)| prim < b));
         if closer {
             best.d2 = d2;
             best.threshold = prune_threshold(d2, best.delta);
-            let found = ClosestPoint {
-                point: q.point,
-                distance: d2.sqrt(),
-                prim,
-                u: q.u,
-                v: q.v,
+            best.found = Some((q, prim, local));
+        }
+    }
+}
+
+impl ClosestPointTree {
+    /// Every triangle whose computed squared distance from `p` is at most `radius_squared`,
+    /// `None` when more than `limit`: the search's walk with a fixed threshold
+    /// (`prune_threshold(radius_squared, δ)`, under which no triangle of a pruned box can have a
+    /// computed distance within the radius).
+    fn triangles_within(&self, p: DVec3, radius_squared: f64, limit: usize) -> Option<Vec<u32>> {
+        let tree = &self.tree;
+        let mut found = Vec::new();
+        if tree.nodes.is_empty() || !p.is_finite() {
+            return Some(found);
+        }
+        let bracket = PointBracket::new(p);
+        let threshold = prune_threshold(radius_squared, rounding_margin(p, tree.mesh_scale));
+        let mut stack = vec![(0u32, 0u32)];
+        while let Some((child, triangles)) = stack.pop() {
+            if triangles > 0 {
+                for k in 0..triangles {
+                    let local = child * 4 + k;
+                    if self.distance_squared(p, local) <= radius_squared {
+                        found.push(local);
+                        if found.len() > limit {
+                            return None;
+                        }
+                    }
+                }
+                continue;
+            }
+            let node = &tree.nodes[child as usize];
+            let bounds = match &node.frame {
+                None => node.bounds.distance_squared_lower_bounds(&bracket),
+                Some(frame) => node
+                    .bounds
+                    .distance_squared_lower_bounds(&frame.bracket(&bracket))
+                    .map(|b| b * FRAME_SHRINK),
             };
-            best.found = Some((found, local));
+            for (k, &bound) in bounds.iter().enumerate() {
+                // Empty slots have NaN bounds and fail the test.
+                if bound <= threshold {
+                    stack.push((node.child[k], node.triangles[k]));
+                }
+            }
+        }
+        Some(found)
+    }
+}
+
+impl NearestTriangles for ClosestPointTree {
+    fn nearest(&self, p: DVec3) -> Option<u32> {
+        self.search(p, None, &mut Vec::new())
+            .map(|(_, local)| local)
+    }
+
+    fn distance_squared(&self, p: DVec3, local: u32) -> f64 {
+        let packet = &self.tree.packets[local as usize / 4];
+        let [a, b, c] = packet.triangle(local as usize % 4);
+        (p - closest_point_on_triangle(p, a, b, c).point).length_squared()
+    }
+
+    fn within(&self, p: DVec3, radius_squared: f64, limit: usize) -> Option<Vec<u32>> {
+        self.triangles_within(p, radius_squared, limit)
+    }
+
+    fn mesh_scale(&self) -> f64 {
+        self.tree.mesh_scale
+    }
+
+    fn triangle(&self, local: u32) -> ListedTriangle {
+        let packet = &self.tree.packets[local as usize / 4];
+        let lane = local as usize % 4;
+        ListedTriangle {
+            vertices: packet.triangle(lane),
+            prim: packet.prim[lane],
         }
     }
 }

@@ -7,6 +7,7 @@
 //! | inside a closed mesh | [`inside`] | majority of three ray parity counts, each from one all-hits traversal |
 
 mod box_bound;
+mod candidate_grid;
 pub mod closest_point;
 pub mod inside;
 mod node_frame;
@@ -14,7 +15,10 @@ pub mod point_triangle;
 mod search_tree;
 mod triangle_packet;
 
-pub use closest_point::{closest_point_brute_force, ClosestPoint, ClosestPointTree};
+pub use candidate_grid::CandidateGridConfig;
+pub use closest_point::{
+    closest_point_brute_force, ClosestPoint, ClosestPointColumns, ClosestPointTree,
+};
 pub use inside::contains;
 pub use point_triangle::{closest_point_on_triangle, TrianglePoint};
 pub use search_tree::SearchTreeConfig;

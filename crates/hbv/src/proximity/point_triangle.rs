@@ -22,6 +22,7 @@ pub struct TrianglePoint {
 /// `(u, v) = (vb, vc) / (va + vb + vc)`. No square root, no division outside the chosen region.
 ///
 /// The triangle must not be degenerate (zero area): the face region divides by `va + vb + vc`.
+#[inline(always)]
 pub fn closest_point_on_triangle(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> TrianglePoint {
     let at = |u: f64, v: f64, point: DVec3| TrianglePoint { point, u, v };
     let ab = b - a;
