@@ -33,7 +33,9 @@ use rayon::prelude::*;
 
 use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
 
-/// Knobs of the [`CandidateGrid`].
+/// Settings of the candidate grid that `closest_point` queries use on meshes of a few large
+/// triangles (cells listing every triangle that can be nearest inside them; see
+/// [`ClosestPointTree::with_grid`](super::ClosestPointTree::with_grid)).
 #[derive(Clone, Copy, Debug)]
 pub struct CandidateGridConfig {
     /// About how many cells the grid has (cubic cells, over the mesh's box grown by
