@@ -7,7 +7,6 @@ use super::box_bound::{prune_threshold, rounding_margin, PointBracket};
 use super::candidate_grid::{
     CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, NearestTriangles,
 };
-use super::node_frame::FRAME_SHRINK;
 use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
 use super::search_tree::{SearchTree, SearchTreeConfig};
 use crate::bvh::morton::morton_code;
@@ -353,13 +352,7 @@ impl ClosestPointTree {
                 continue;
             }
             let node = &tree.nodes[pending.child as usize];
-            let bounds = match &node.frame {
-                None => node.bounds.distance_squared_lower_bounds(&bracket),
-                Some(frame) => node
-                    .bounds
-                    .distance_squared_lower_bounds(&frame.bracket(&bracket))
-                    .map(|b| b * FRAME_SHRINK),
-            };
+            let bounds = node.distance_squared_lower_bounds(&bracket);
             let mut within = 0u32;
             for (k, &bound) in bounds.iter().enumerate() {
                 within |= ((bound <= best.threshold) as u32) << k;
@@ -487,13 +480,7 @@ impl ClosestPointTree {
                 continue;
             }
             let node = &tree.nodes[child as usize];
-            let bounds = match &node.frame {
-                None => node.bounds.distance_squared_lower_bounds(&bracket),
-                Some(frame) => node
-                    .bounds
-                    .distance_squared_lower_bounds(&frame.bracket(&bracket))
-                    .map(|b| b * FRAME_SHRINK),
-            };
+            let bounds = node.distance_squared_lower_bounds(&bracket);
             for (k, &bound) in bounds.iter().enumerate() {
                 // Empty slots have NaN bounds and fail the test.
                 if bound <= threshold {

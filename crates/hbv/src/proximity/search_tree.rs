@@ -14,8 +14,8 @@
 
 use glam::{DVec3, Vec3};
 
-use super::box_bound::Box4;
-use super::node_frame::NodeFrame;
+use super::box_bound::{Box4, PointBracket};
+use super::node_frame::{NodeFrame, FRAME_SHRINK};
 use super::triangle_packet::TrianglePacket;
 use crate::bvh::{BuildTree, NodeContent, NodeId};
 use crate::geometry::Aabb;
@@ -61,6 +61,20 @@ impl QuadNode {
         triangles: [0; 4],
         frame: None,
     };
+
+    /// Lower bounds of the squared distances from the point in `bracket` to the four children's
+    /// boxes, in whichever frame they are given (see [`NodeFrame`] for the shrink that keeps a
+    /// rotated bound conservative).
+    #[inline(always)]
+    pub fn distance_squared_lower_bounds(&self, bracket: &PointBracket) -> [f32; 4] {
+        match &self.frame {
+            None => self.bounds.distance_squared_lower_bounds(bracket),
+            Some(frame) => self
+                .bounds
+                .distance_squared_lower_bounds(&frame.bracket(bracket))
+                .map(|b| b * FRAME_SHRINK),
+        }
+    }
 
     fn set_bounds(&mut self, slot: usize, (lo, hi): SlotBox) {
         for axis in 0..3 {
