@@ -339,8 +339,10 @@ mod tests {
         }
 
         /// The same at every scale, from coordinates near the smallest normal float (where
-        /// the bound's floor decides) to near the largest (where shears overflow), with rays
-        /// aimed at a vertex or an edge of one of the triangles, which share vertices.
+        /// products underflow) to near the largest (where shears overflow), with rays aimed at
+        /// a vertex or an edge of one of the triangles, which share vertices. (It catches a
+        /// bound made too small; the bound's floor at `2^-126` is not needed by any case it
+        /// makes, since there the per-edge bounds underflow too: the floor is the proof's.)
         #[test]
         fn packet_test_at_extreme_scales(
             scale in prop_oneof![Just(1e-38f32), Just(1e-30), Just(1e-19), Just(1.0), Just(1e19), Just(1e30), Just(1e37)],
