@@ -75,6 +75,10 @@ pub struct PreparedRay {
     pub(crate) shear: Vec3,
     /// Absolute widening of `[tmin, tmax]` for box tests; see [`PreparedRay::bound_errors_within`].
     pub(crate) box_margin: f32,
+    /// Absolute bound on twice the rounding error of a slab distance of a box inside the scene,
+    /// for the wide layouts' box kernels; see [`PreparedRay::bound_errors_within`]. `+inf` (every
+    /// box is met) until a scene is given.
+    pub(crate) slab_margin: f32,
 }
 
 impl PreparedRay {
@@ -121,6 +125,7 @@ impl PreparedRay {
             },
             shear,
             box_margin: 0.0,
+            slab_margin: f32::INFINITY,
         }
     }
 
@@ -135,11 +140,28 @@ impl PreparedRay {
     /// `tmax` set to the computed `t`. The box tests therefore use `[tmin - m, tmax + m]` with
     ///
     /// ```text
-    ///   m = 2^-18 · (max |o| + max |scene|) / |d_kz|
+    ///   m = (2^-18 + 2^-20) · X,   X = (max |o| + max |scene|) / |d_kz|
     /// ```
     ///
-    /// (2^-18 is 32 ulps of 1: several times the triangle test's error bound). The margin only
+    /// (2^-18 is 32 ulps of 1: several times the triangle test's error bound; the 2^-20 covers
+    /// the slab error `δ` below, which the wide kernels' entry distances carry). The margin only
     /// lets the traversal visit a little more; the triangle tests keep the exact interval.
+    ///
+    /// **Slab margin** (the wide layouts' box kernels, `bvh/layout/wide_kernels.rs`): every point
+    /// of the ray inside a box of the scene has `|t| ≤ T = √3 X` (it lies within `√3 max |scene|`
+    /// of the origin's `√3 max |o|`, and `|d| ≥ |d_kz|`), and a computed slab distance
+    /// `fl(fl(b − o) · fl(1/d))` is within `δ = 3.01 u T + 3 · 2^-150` of the exact one for every
+    /// distance that matters (`u = 2^-24`; the second term covers subnormal results). Widening a
+    /// box's exit by `s ≥ 2δ` — added, not scaled, so one addition per box and no test of signs —
+    /// then never loses a box the ray meets:
+    ///
+    /// ```text
+    ///   s = max(2^-19 · X, 2^-126)   ≥ 2δ   (2^-19 X ≈ 3.07 · 2 · 3.01 u √3 X)
+    /// ```
+    ///
+    /// Both are at least `2^-126` (the subnormal term of `δ`). An overflowing `X` (a direction
+    /// of tiny length far from the scene) gives `m = 0` and `s = +inf`: every box is met, and
+    /// the answers stay exact.
     pub fn bound_errors_within(&mut self, scene: &Aabb) {
         self.bound_errors_within_size(Self::scene_size(scene));
     }
@@ -156,9 +178,19 @@ impl PreparedRay {
     pub fn bound_errors_within_size(&mut self, scene_size: f32) {
         let origin_size = self.origin.abs().max_element();
         // `shear.z` is 1 / d_kz.
-        let margin = Self::BOX_SLACK * (origin_size + scene_size) * self.shear.z.abs();
+        let x = (origin_size + scene_size) * self.shear.z.abs();
+        let margin = (Self::BOX_SLACK + Self::BOX_SLACK / 4.0) * x;
         // An empty scene (infinite bounds) or overflow: no margin is needed, or none would help.
-        self.box_margin = if margin.is_finite() { margin } else { 0.0 };
+        self.box_margin = if margin.is_finite() {
+            margin.max(f32::MIN_POSITIVE)
+        } else {
+            0.0
+        };
+        self.slab_margin = if x.is_finite() {
+            (Self::BOX_SLACK / 2.0 * x).max(f32::MIN_POSITIVE)
+        } else {
+            f32::INFINITY
+        };
     }
 
     /// The lower end of the interval the box tests use.

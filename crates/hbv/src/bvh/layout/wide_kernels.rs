@@ -7,6 +7,8 @@
 // lane counter; iterators over one of them would hide that symmetry.
 #![allow(clippy::needless_range_loop)]
 
+use glam::Vec3;
+
 use crate::geometry::PreparedRay;
 
 /// Child boxes of a wide node, structure of arrays: `planes[side][axis][lane]`, side 0 the
@@ -19,51 +21,70 @@ pub(crate) struct BoxRay {
     origin: [f32; 3],
     inv_direction: [f32; 3],
     /// Which side of `LaneBoxes` is the near plane on each axis: 1 (max) for a negative direction.
-    near_side: [usize; 3],
-    /// The rows of `LaneBoxes` read as `[[f32; W]; 6]` (`3 · side + axis`) that hold each axis's
-    /// near and far planes: always below 6, so the SIMD kernels read them without bounds checks.
-    near_row: [usize; 3],
-    far_row: [usize; 3],
+    near_side: [u8; 3],
+    /// Where each axis's near and far planes start in an 8-wide node's `LaneBoxes`, in bytes:
+    /// row `3 · side + axis` of 32 bytes (half that in a 4-wide node). Precomputed so that a
+    /// node's six loads need no address arithmetic; always within the 6 rows.
+    near_offset: [u32; 3],
+    far_offset: [u32; 3],
+    /// [`PreparedRay`]'s slab margin `s`: the widening of each box's exit distance.
+    slab_margin: f32,
 }
 
 impl BoxRay {
     #[inline]
     pub fn new(ray: &PreparedRay) -> Self {
-        let near_side = ray.negative.map(usize::from);
+        let near_side = ray.negative.map(u8::from);
+        let row_offset = |side: u8, axis: u32| (3 * u32::from(side) + axis) * 32;
         Self {
             origin: ray.origin.to_array(),
             inv_direction: ray.inv_direction.to_array(),
             near_side,
-            near_row: [0, 1, 2].map(|axis| 3 * near_side[axis] + axis),
-            far_row: [0, 1, 2].map(|axis| 3 * (1 - near_side[axis]) + axis),
+            near_offset: [0, 1, 2].map(|axis| row_offset(near_side[axis as usize], axis)),
+            far_offset: [0, 1, 2].map(|axis| row_offset(1 - near_side[axis as usize], axis)),
+            slab_margin: ray.slab_margin,
         }
     }
 
     /// The `W` near-plane coordinates of `axis` in `boxes`.
     #[inline(always)]
-    fn near_planes<'b, const W: usize>(
-        &self,
-        boxes: &'b LaneBoxes<W>,
-        axis: usize,
-    ) -> &'b [f32; W] {
-        // SAFETY: `near_row` holds `3 · side + axis` with side 0 or 1 and axis 0 to 2 (set only
-        // in `new`), so the row is in 0..6, inside the 6 rows of `boxes`.
-        unsafe { boxes.as_flattened().get_unchecked(self.near_row[axis]) }
+    fn near_planes<const W: usize>(&self, boxes: &LaneBoxes<W>, axis: usize) -> *const f32 {
+        Self::row(boxes, self.near_offset[axis])
     }
 
     /// The `W` far-plane coordinates of `axis` in `boxes`.
     #[inline(always)]
-    fn far_planes<'b, const W: usize>(&self, boxes: &'b LaneBoxes<W>, axis: usize) -> &'b [f32; W] {
-        // SAFETY: as in `near_planes`: the row is in 0..6.
-        unsafe { boxes.as_flattened().get_unchecked(self.far_row[axis]) }
+    fn far_planes<const W: usize>(&self, boxes: &LaneBoxes<W>, axis: usize) -> *const f32 {
+        Self::row(boxes, self.far_offset[axis])
+    }
+
+    /// The row at `offset8` bytes of an 8-wide node, or half that in a 4-wide one.
+    #[inline(always)]
+    fn row<const W: usize>(boxes: &LaneBoxes<W>, offset8: u32) -> *const f32 {
+        let offset = offset8 as usize * W / 8;
+        // SAFETY: the offset is that of one of the 6 rows of `W` floats of `boxes` (`new` sets
+        // it to `(3 · side + axis) · 32` with side 0 or 1 and axis 0 to 2; `W / 8` scales a row
+        // of 8 floats to one of `W`), so the pointer stays inside `boxes`.
+        unsafe { (boxes as *const LaneBoxes<W> as *const u8).add(offset) as *const f32 }
     }
 }
 
-const SLACK: f32 = PreparedRay::BOX_SLACK;
-
 /// Which of the `W` boxes the ray meets within `[tmin, tmax]` (bit `i` of the mask), and the
-/// entry distance of each: the slab test of [`crate::geometry::Aabb::intersect_interval`], lane
-/// by lane. The scalar definition of the SIMD kernels.
+/// entry distance of each. The scalar definition of the SIMD kernels.
+///
+/// The slab test of [`crate::geometry::Aabb::intersect_interval`] (Kay & Kajiya 1986; a NaN
+/// distance, from an origin on a slab plane with a zero direction component, drops out), but
+/// widened by an absolute margin instead of a relative one (Ize 2013 scales both ends by
+/// `1 ± 2^-18`, which needs a test of each end's sign):
+///
+/// ```text
+///   entry = max(near, tmin),   exit = min(far, tmax) + s,   met if entry ≤ exit
+/// ```
+///
+/// with `s` the ray's slab margin, at least twice the rounding error of any slab distance that
+/// matters inside the scene ([`PreparedRay::bound_errors_within`] proves it): a box the ray
+/// meets is never lost, and `entry` exceeds the exact entry by at most `s / 2`, which the ray's
+/// box margin covers when `tmax` culls postponed children.
 #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
 #[inline]
 pub(crate) fn boxes_scalar<const W: usize>(
@@ -75,21 +96,28 @@ pub(crate) fn boxes_scalar<const W: usize>(
     let mut mask = 0;
     let mut entry = [0.0; W];
     for lane in 0..W {
-        let mut near = f32::NEG_INFINITY;
-        let mut far = f32::INFINITY;
-        for axis in 0..3 {
-            let side = ray.near_side[axis];
-            near =
-                ((boxes[side][axis][lane] - ray.origin[axis]) * ray.inv_direction[axis]).max(near);
-            far = ((boxes[1 - side][axis][lane] - ray.origin[axis]) * ray.inv_direction[axis])
-                .min(far);
-        }
-        let near = (near * if near > 0.0 { 1.0 - SLACK } else { 1.0 + SLACK }).max(tmin);
-        let far = (far * if far > 0.0 { 1.0 + SLACK } else { 1.0 - SLACK }).min(tmax);
+        let corners = [0, 1].map(|side| Vec3::from_array(boxes[side].map(|axis| axis[lane])));
+        let (met, near) = box_scalar(corners, ray, tmin, tmax);
         entry[lane] = near;
-        mask |= u32::from(near <= far) << lane;
+        mask |= u32::from(met) << lane;
     }
     (mask, entry)
+}
+
+/// [`boxes_scalar`] for one box, given as its `[min, max]` corners: whether the ray meets it,
+/// and the entry distance. (The wide layouts' test of the root box, before a ray's first step.)
+#[inline]
+pub(crate) fn box_scalar(corners: [Vec3; 2], ray: &BoxRay, tmin: f32, tmax: f32) -> (bool, f32) {
+    let mut near = f32::NEG_INFINITY;
+    let mut far = f32::INFINITY;
+    for axis in 0..3 {
+        let side = usize::from(ray.near_side[axis]);
+        near = ((corners[side][axis] - ray.origin[axis]) * ray.inv_direction[axis]).max(near);
+        far = ((corners[1 - side][axis] - ray.origin[axis]) * ray.inv_direction[axis]).min(far);
+    }
+    let near = near.max(tmin);
+    let far = far.min(tmax) + ray.slab_margin;
+    (near <= far, near)
 }
 
 /// Four boxes (lanes `offset..offset + 4` of `boxes`) with SSE.
@@ -116,26 +144,16 @@ pub(crate) fn boxes_sse<const W: usize>(
         for axis in 0..3 {
             let o = _mm_set1_ps(ray.origin[axis]);
             let inv = _mm_set1_ps(ray.inv_direction[axis]);
-            let n = _mm_loadu_ps(ray.near_planes(boxes, axis).as_ptr().add(offset));
-            let f = _mm_loadu_ps(ray.far_planes(boxes, axis).as_ptr().add(offset));
+            let n = _mm_loadu_ps(ray.near_planes(boxes, axis).add(offset));
+            let f = _mm_loadu_ps(ray.far_planes(boxes, axis).add(offset));
             near = _mm_max_ps(_mm_mul_ps(_mm_sub_ps(n, o), inv), near);
             far = _mm_min_ps(_mm_mul_ps(_mm_sub_ps(f, o), inv), far);
         }
-        let zero = _mm_setzero_ps();
-        let shrink = _mm_set1_ps(1.0 - SLACK);
-        let grow = _mm_set1_ps(1.0 + SLACK);
-        let near_positive = _mm_cmpgt_ps(near, zero);
-        let far_positive = _mm_cmpgt_ps(far, zero);
-        let near_factor = _mm_or_ps(
-            _mm_and_ps(near_positive, shrink),
-            _mm_andnot_ps(near_positive, grow),
+        let near = _mm_max_ps(near, _mm_set1_ps(tmin));
+        let far = _mm_add_ps(
+            _mm_min_ps(far, _mm_set1_ps(tmax)),
+            _mm_set1_ps(ray.slab_margin),
         );
-        let far_factor = _mm_or_ps(
-            _mm_and_ps(far_positive, grow),
-            _mm_andnot_ps(far_positive, shrink),
-        );
-        let near = _mm_max_ps(_mm_mul_ps(near, near_factor), _mm_set1_ps(tmin));
-        let far = _mm_min_ps(_mm_mul_ps(far, far_factor), _mm_set1_ps(tmax));
         let mask = _mm_movemask_ps(_mm_cmple_ps(near, far)) as u32;
         let mut entry = [0.0f32; 4];
         _mm_storeu_ps(entry.as_mut_ptr(), near);
@@ -162,20 +180,16 @@ pub(crate) unsafe fn boxes_avx(
         for axis in 0..3 {
             let o = _mm256_set1_ps(ray.origin[axis]);
             let inv = _mm256_set1_ps(ray.inv_direction[axis]);
-            let n = _mm256_loadu_ps(ray.near_planes(boxes, axis).as_ptr());
-            let f = _mm256_loadu_ps(ray.far_planes(boxes, axis).as_ptr());
+            let n = _mm256_loadu_ps(ray.near_planes(boxes, axis));
+            let f = _mm256_loadu_ps(ray.far_planes(boxes, axis));
             near = _mm256_max_ps(_mm256_mul_ps(_mm256_sub_ps(n, o), inv), near);
             far = _mm256_min_ps(_mm256_mul_ps(_mm256_sub_ps(f, o), inv), far);
         }
-        let zero = _mm256_setzero_ps();
-        let shrink = _mm256_set1_ps(1.0 - SLACK);
-        let grow = _mm256_set1_ps(1.0 + SLACK);
-        let near_positive = _mm256_cmp_ps::<_CMP_GT_OQ>(near, zero);
-        let far_positive = _mm256_cmp_ps::<_CMP_GT_OQ>(far, zero);
-        let near_factor = _mm256_blendv_ps(grow, shrink, near_positive);
-        let far_factor = _mm256_blendv_ps(shrink, grow, far_positive);
-        let near = _mm256_max_ps(_mm256_mul_ps(near, near_factor), _mm256_set1_ps(tmin));
-        let far = _mm256_min_ps(_mm256_mul_ps(far, far_factor), _mm256_set1_ps(tmax));
+        let near = _mm256_max_ps(near, _mm256_set1_ps(tmin));
+        let far = _mm256_add_ps(
+            _mm256_min_ps(far, _mm256_set1_ps(tmax)),
+            _mm256_set1_ps(ray.slab_margin),
+        );
         let mask = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32;
         let mut entry = [0.0f32; 8];
         _mm256_storeu_ps(entry.as_mut_ptr(), near);
@@ -248,44 +262,105 @@ pub(crate) mod tests {
         l
     }
 
+    /// Where the ray enters `b` within its `[tmin, tmax]`, decided exactly, or `None` when it
+    /// does not meet it there. The f64 differences of f32 coordinates are exact (or, across
+    /// extreme exponents, rounded far below the kernels' margins), and the correctly rounded
+    /// quotients keep the order of the exact slab distances (rounding is monotone): the
+    /// comparisons decide as exact arithmetic does, but for distances within an ulp of f64.
+    fn exact_entry(b: &Aabb, ray: &Ray) -> Option<f64> {
+        if b.is_empty() {
+            return None;
+        }
+        let (mut near, mut far) = (ray.tmin as f64, ray.tmax as f64);
+        for axis in 0..3 {
+            let (o, d) = (ray.origin[axis] as f64, ray.direction[axis] as f64);
+            let (lo, hi) = (b.min[axis] as f64, b.max[axis] as f64);
+            if d == 0.0 {
+                if o < lo || o > hi {
+                    return None;
+                }
+                continue;
+            }
+            let (t0, t1) = ((lo - o) / d, (hi - o) / d);
+            near = near.max(t0.min(t1));
+            far = far.min(t0.max(t1));
+        }
+        (near <= far).then_some(near)
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(2000))]
 
         #[test]
-        fn box_kernels_equal_the_scalar_slab_test(ray in ray_strategy(), boxes in prop::collection::vec(box_strategy(), 8)) {
-            let prepared = PreparedRay::new(&ray);
+        fn box_kernels_never_lose_a_box_and_agree_with_their_scalar_twin(
+            ray in ray_strategy(),
+            boxes in prop::collection::vec(box_strategy(), 8),
+            scale in prop_oneof![Just(1.0f32), Just(2f32.powi(-70)), Just(2f32.powi(70))],
+            direction_scale in prop_oneof![Just(1.0f32), Just(2f32.powi(-50)), Just(2f32.powi(50))],
+            aim in prop::option::of((0usize..8, prop::array::uniform3(0u8..3), 0.0f32..1.0)),
+        ) {
+            // The same configuration at another scale of coordinates and of direction lengths.
+            let boxes: Vec<Aabb> = boxes
+                .iter()
+                .map(|b| if b.is_empty() { *b } else { Aabb::new(b.min * scale, b.max * scale) })
+                .collect();
+            let origin = ray.origin * scale;
+            let mut direction = ray.direction;
+            // Or aimed at a corner or an edge of one of the boxes, where the line grazes the box
+            // within rounding and only the margin keeps it.
+            if let Some((lane, sides, fraction)) = aim {
+                let b = boxes[lane];
+                if !b.is_empty() {
+                    let target = Vec3::from_array(std::array::from_fn(|axis| match sides[axis] {
+                        0 => b.min[axis],
+                        1 => b.max[axis],
+                        _ => b.min[axis] + fraction * (b.max[axis] - b.min[axis]),
+                    }));
+                    if target != origin {
+                        direction = (target - origin) / scale;
+                    }
+                }
+            }
+            let ray = Ray::new(origin, direction * direction_scale).with_interval(ray.tmin, ray.tmax);
+            prop_assume!(ray.is_valid());
+            let mut prepared = PreparedRay::new(&ray);
+            // Every box coordinate is within 2 · scale of zero.
+            prepared.bound_errors_within_size(2.0 * scale);
             let box_ray = BoxRay::new(&prepared);
+            let (tmin, tmax) = (prepared.box_tmin(), prepared.box_tmax());
             let l8 = lanes::<8>(&boxes);
-            let (mask, entry) = boxes_scalar(&l8, &box_ray, ray.tmin, ray.tmax);
+            let (mask, entry) = boxes_scalar(&l8, &box_ray, tmin, tmax);
             for (lane, b) in boxes.iter().enumerate() {
-                prop_assert_eq!(mask >> lane & 1 == 1, b.hit_by(&prepared), "lane {}", lane);
-                if let Some((near, _)) = b.intersect_interval(&prepared) {
-                    prop_assert_eq!(entry[lane], near);
+                if let Some(exact_entry) = exact_entry(b, &ray) {
+                    prop_assert!(mask >> lane & 1 == 1, "lane {} lost", lane);
+                    prop_assert!(
+                        entry[lane] as f64 <= exact_entry + prepared.box_margin as f64,
+                        "lane {}: entry {} beyond the exact {} and the margin", lane, entry[lane], exact_entry
+                    );
                 }
             }
             #[cfg(target_arch = "x86_64")]
             {
                 for offset in [0, 4] {
-                    let (m, e) = boxes_sse(&l8, offset, &box_ray, ray.tmin, ray.tmax);
+                    let (m, e) = boxes_sse(&l8, offset, &box_ray, tmin, tmax);
                     prop_assert_eq!(m, mask >> offset & 0xf);
                     for k in 0..4 {
                         if m >> k & 1 == 1 {
-                            prop_assert_eq!(e[k], entry[offset + k]);
+                            prop_assert_eq!(e[k].to_bits(), entry[offset + k].to_bits());
                         }
                     }
                 }
                 if std::arch::is_x86_feature_detected!("avx") {
                     // SAFETY: AVX was just detected.
-                    let (m, e) = unsafe { boxes_avx(&l8, &box_ray, ray.tmin, ray.tmax) };
+                    let (m, e) = unsafe { boxes_avx(&l8, &box_ray, tmin, tmax) };
                     prop_assert_eq!(m, mask);
                     for k in 0..8 {
                         if m >> k & 1 == 1 {
-                            prop_assert_eq!(e[k], entry[k]);
+                            prop_assert_eq!(e[k].to_bits(), entry[k].to_bits());
                         }
                     }
                 }
             }
         }
-
     }
 }

@@ -4,7 +4,7 @@
 
 use super::{BoxKernel, WideLayout, LEAF, LEAF_COUNT_SHIFT, LEAF_FIRST_MASK};
 use crate::bvh::layout::stack::TraversalStack;
-use crate::bvh::layout::wide_kernels::BoxRay;
+use crate::bvh::layout::wide_kernels::{box_scalar, BoxRay};
 use crate::geometry::{PreparedRay, Ray};
 use crate::stats::Counter;
 
@@ -55,9 +55,9 @@ impl Traversal {
         ray: &Ray,
         counter: &mut C,
     ) -> Option<Self> {
-        let (ray, root) = Self::enter(layout, ray, counter)?;
+        let (ray, box_ray, root) = Self::enter(layout, ray, counter)?;
         Some(Self {
-            box_ray: BoxRay::new(&ray),
+            box_ray,
             box_tmin: ray.box_tmin(),
             box_tmax: ray.box_tmax(),
             ray,
@@ -75,10 +75,10 @@ impl Traversal {
         ray: &Ray,
         counter: &mut C,
     ) -> bool {
-        let Some((ray, root)) = Self::enter(layout, ray, counter) else {
+        let Some((ray, box_ray, root)) = Self::enter(layout, ray, counter) else {
             return false;
         };
-        self.box_ray = BoxRay::new(&ray);
+        self.box_ray = box_ray;
         self.box_tmin = ray.box_tmin();
         self.box_tmax = ray.box_tmax();
         self.ray = ray;
@@ -87,19 +87,22 @@ impl Traversal {
         true
     }
 
-    /// The prepared ray, with its box-test margin for the tree, and the root, if the ray meets
-    /// the root's box.
+    /// The prepared ray, with its box-test margins for the tree, its box-kernel constants and
+    /// the root, if the ray meets the root's box (tested as the kernels test a child's box).
     #[inline(always)]
     fn enter<const W: usize, C: Counter>(
         layout: &WideLayout<W>,
         ray: &Ray,
         counter: &mut C,
-    ) -> Option<(PreparedRay, u32)> {
+    ) -> Option<(PreparedRay, BoxRay, u32)> {
         let (root, root_bounds, scene_size) = layout.root?;
         let mut prepared = PreparedRay::new(ray);
         prepared.bound_errors_within_size(scene_size);
+        let box_ray = BoxRay::new(&prepared);
         counter.boxes_tested(1);
-        root_bounds.hit_by(&prepared).then_some((prepared, root))
+        let corners = [root_bounds.min, root_bounds.max];
+        let (met, _) = box_scalar(corners, &box_ray, prepared.box_tmin(), prepared.box_tmax());
+        met.then_some((prepared, box_ray, root))
     }
 
     /// Visits the current node or leaf and chooses what comes next.
