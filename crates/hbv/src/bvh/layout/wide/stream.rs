@@ -69,29 +69,55 @@ impl<const W: usize> WideLayout<W> {
         let mut answer: [Option<A>; STREAMS] = std::array::from_fn(|_| None);
         let mut index = [0usize; STREAMS];
         let mut next = 0;
-        let mut busy = 0u32;
+        // Slots whose next step visits a node, and a leaf. Each round takes one step of every
+        // busy ray as before, but all node steps first and then all leaf steps: whether a
+        // step is a node's or a leaf's is then known from the loop, not from a branch on the
+        // ray's state, which interleaved rays make unpredictable (about three mispredicted
+        // branches per ray on the teapot).
+        let (mut nodes, mut leaves) = (0u32, 0u32);
         for i in 0..STREAMS {
             if self.start_next(rays, &mut next, &mut traversals[i], &mut index[i]) {
-                busy |= 1 << i;
+                place(i, &traversals[i], &mut nodes, &mut leaves);
             }
         }
-        while busy != 0 {
-            for i in Lanes(busy) {
+        while nodes | leaves != 0 {
+            let (mut next_nodes, mut next_leaves) = (0u32, 0u32);
+            for i in Lanes(nodes) {
+                let step = traversals[i]
+                    .node_step::<W, NoCount, K, NEAREST_FIRST, true>(self, &mut NoCount);
+                if let Step::Done = step {
+                    answers[index[i]] = answer[i].take();
+                    if !self.start_next(rays, &mut next, &mut traversals[i], &mut index[i]) {
+                        continue;
+                    }
+                }
+                place(i, &traversals[i], &mut next_nodes, &mut next_leaves);
+            }
+            for i in Lanes(leaves) {
                 let found = &mut answer[i];
-                let step = traversals[i].step::<W, NoCount, K, NEAREST_FIRST, true>(
-                    self,
-                    &mut NoCount,
-                    |first, count, ray, _| visit_leaf(self, first, count, ray, found),
-                );
+                let step = traversals[i].leaf_step(&mut NoCount, |first, count, ray, _| {
+                    visit_leaf(self, first, count, ray, found)
+                });
                 if let Step::Done = step {
                     answers[index[i]] = found.take();
                     if !self.start_next(rays, &mut next, &mut traversals[i], &mut index[i]) {
-                        busy &= !(1 << i);
+                        continue;
                     }
                 }
+                place(i, &traversals[i], &mut next_nodes, &mut next_leaves);
             }
+            (nodes, leaves) = (next_nodes, next_leaves);
         }
     }
+}
+
+/// Puts slot `i` into the set of slots whose next step visits a node, or a leaf (without a
+/// branch on which).
+#[inline(always)]
+fn place(i: usize, traversal: &Traversal, nodes: &mut u32, leaves: &mut u32) {
+    let leaf = u32::from(traversal.at_leaf());
+    *leaves |= leaf << i;
+    *nodes |= (leaf ^ 1) << i;
 }
 
 impl<const W: usize> WideLayout<W> {

@@ -105,48 +105,87 @@ impl Traversal {
         met.then_some((prepared, box_ray, root))
     }
 
-    /// Visits the current node or leaf and chooses what comes next.
-    ///
-    /// A leaf goes to `visit_leaf(first_packet, packet_count, ray, counter)`, which may shrink
-    /// `ray.tmax` and returns `true` to end the traversal. A node's `W` child boxes are tested
-    /// at once and the step goes on to the child [`WideLayout::descend`] chooses; when none is
-    /// met, or after a leaf, to the nearest postponed child that still begins within the
-    /// (possibly shrunk) interval. With `PREFETCH_NEXT` the next node's memory is asked for
-    /// at once (for interleaved rays, which visit it only after the others' steps).
+    /// Visits the current node or leaf and chooses what comes next: [`Traversal::leaf_step`] or
+    /// [`Traversal::node_step`].
     #[inline(always)]
     pub fn step<const W: usize, C, K, const NEAREST_FIRST: bool, const PREFETCH_NEXT: bool>(
         &mut self,
         layout: &WideLayout<W>,
         counter: &mut C,
+        visit_leaf: impl FnMut(usize, usize, &mut PreparedRay, &mut C) -> bool,
+    ) -> Step
+    where
+        C: Counter,
+        K: BoxKernel<W>,
+    {
+        if self.at_leaf() {
+            self.leaf_step(counter, visit_leaf)
+        } else {
+            self.node_step::<W, C, K, NEAREST_FIRST, PREFETCH_NEXT>(layout, counter)
+        }
+    }
+
+    /// Whether the next step visits a leaf.
+    #[inline(always)]
+    pub fn at_leaf(&self) -> bool {
+        self.current & LEAF != 0
+    }
+
+    /// Visits the current leaf (see [`Traversal::at_leaf`]): `visit_leaf(first_packet,
+    /// packet_count, ray, counter)` may shrink `ray.tmax` and returns `true` to end the
+    /// traversal; otherwise the traversal goes on to the nearest postponed child that still
+    /// begins within the (possibly shrunk) interval.
+    #[inline(always)]
+    pub fn leaf_step<C: Counter>(
+        &mut self,
+        counter: &mut C,
         mut visit_leaf: impl FnMut(usize, usize, &mut PreparedRay, &mut C) -> bool,
+    ) -> Step {
+        counter.node_visited();
+        let current = self.current;
+        let first = (current & LEAF_FIRST_MASK) as usize;
+        let count = ((current & !LEAF) >> LEAF_COUNT_SHIFT) as usize + 1;
+        if visit_leaf(first, count, &mut self.ray, counter) {
+            return Step::Done;
+        }
+        self.box_tmax = self.ray.box_tmax();
+        self.resume()
+    }
+
+    /// Visits the current node (not a leaf): its `W` child boxes are tested at once and the
+    /// traversal goes on to the child [`WideLayout::descend`] chooses, or, when none is met, to
+    /// the nearest postponed child still within the interval. With `PREFETCH_NEXT` the next
+    /// node's memory is asked for at once (for interleaved rays, which visit it only after the
+    /// others' steps).
+    #[inline(always)]
+    pub fn node_step<const W: usize, C, K, const NEAREST_FIRST: bool, const PREFETCH_NEXT: bool>(
+        &mut self,
+        layout: &WideLayout<W>,
+        counter: &mut C,
     ) -> Step
     where
         C: Counter,
         K: BoxKernel<W>,
     {
         counter.node_visited();
-        let current = self.current;
-        if current & LEAF != 0 {
-            let first = (current & LEAF_FIRST_MASK) as usize;
-            let count = ((current & !LEAF) >> LEAF_COUNT_SHIFT) as usize + 1;
-            if visit_leaf(first, count, &mut self.ray, counter) {
-                return Step::Done;
+        counter.boxes_tested(W as u32);
+        let node = &layout.nodes[self.current as usize];
+        let (mask, entry) = K::test(&node.boxes, &self.box_ray, self.box_tmin, self.box_tmax);
+        if let Some(next) =
+            layout.descend::<NEAREST_FIRST>(&node.children, mask, &entry, &mut self.stack)
+        {
+            if PREFETCH_NEXT {
+                layout.prefetch(next);
             }
-            self.box_tmax = self.ray.box_tmax();
-        } else {
-            counter.boxes_tested(W as u32);
-            let node = &layout.nodes[current as usize];
-            let (mask, entry) = K::test(&node.boxes, &self.box_ray, self.box_tmin, self.box_tmax);
-            if let Some(next) =
-                layout.descend::<NEAREST_FIRST>(&node.children, mask, &entry, &mut self.stack)
-            {
-                if PREFETCH_NEXT {
-                    layout.prefetch(next);
-                }
-                self.current = next;
-                return Step::Continue;
-            }
+            self.current = next;
+            return Step::Continue;
         }
+        self.resume()
+    }
+
+    /// Goes on to the nearest postponed child that begins within the interval.
+    #[inline(always)]
+    fn resume(&mut self) -> Step {
         loop {
             match self.stack.pop() {
                 Some((n, near)) if near <= self.box_tmax => {
