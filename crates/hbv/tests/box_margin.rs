@@ -44,3 +44,49 @@ fn segments_ending_at_a_near_hit_find_it_in_every_layout() {
     }
     assert_eq!(checked, 10);
 }
+
+/// A direction component so small that `1/d` overflows to infinity, on a ray that still
+/// crosses that axis's slab planes inside the scene: the slab test must not take the ray for
+/// one parallel to the planes (and outside the slab), or it loses the hit.
+#[test]
+fn tiny_direction_components_whose_inverse_overflows_lose_no_hit() {
+    use hbv::mesh::TriangleMesh;
+    // A square in the plane x = 0.5 over y in [0, 1], z in [0, 1]: the ray starts just below
+    // y = 0 and rises by a subnormal slope, crossing y = 0 at x = 0 and meeting the square.
+    let mesh = TriangleMesh::new(
+        vec![
+            Vec3::new(0.5, 0.0, 0.0),
+            Vec3::new(0.5, 1.0, 0.0),
+            Vec3::new(0.5, 1.0, 1.0),
+            Vec3::new(0.5, 0.0, 1.0),
+            // A second object, so that the tree has more than one leaf box to test.
+            Vec3::new(3.0, 3.0, 3.0),
+            Vec3::new(4.0, 3.0, 3.0),
+            Vec3::new(3.0, 4.0, 3.0),
+        ],
+        vec![[0, 1, 2], [0, 2, 3], [4, 5, 6]],
+    )
+    .unwrap();
+    let tree = BinnedSahBuilder::default().build(&mesh);
+    let layouts: Vec<(&str, Box<dyn Accelerator>)> = vec![
+        ("recursive", Box::new(RecursiveLayout::new(&tree, &mesh))),
+        ("skip", Box::new(SkipLayout::new(&tree, &mesh))),
+        ("ordered", Box::new(OrderedLayout::new(&tree, &mesh))),
+        ("wide4", Box::new(Wide4Layout::new(&tree, &mesh))),
+        ("wide8", Box::new(Wide8Layout::new(&tree, &mesh))),
+    ];
+    let brute = BruteForce::new(&mesh);
+    let mut checked = 0;
+    for dy in [1e-40f32, 1e-44, 3e-39] {
+        let origin = Vec3::new(-1.0, -dy, 0.5);
+        let ray = Ray::new(origin, Vec3::new(1.0, dy, 0.0));
+        let hit = brute.intersect(&ray).expect("the ray crosses the square");
+        for (name, layout) in &layouts {
+            assert_eq!(layout.intersect(&ray), Some(hit), "{name}, dy = {dy:e}");
+            assert!(layout.occluded(&ray), "{name}, dy = {dy:e}");
+            assert_eq!(layout.intersect_batch(&[ray])[0], Some(hit), "{name} batch");
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 15);
+}

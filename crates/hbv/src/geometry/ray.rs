@@ -61,6 +61,8 @@ impl Ray {
 pub struct PreparedRay {
     pub origin: Vec3,
     pub direction: Vec3,
+    /// `1/d` per axis; NaN where `d` is not zero but `1/d` overflows (the slab tests then leave
+    /// the axis unconstrained).
     pub inv_direction: Vec3,
     pub negative: [bool; 3],
     pub tmin: f32,
@@ -104,6 +106,23 @@ impl PreparedRay {
         // The six quotients, each one correctly rounded IEEE division: two 4-wide divisions.
         let [sx, sy, sz, _] = divide4([c[kx], c[ky], 1.0, 1.0], [c[kz], c[kz], c[kz], 1.0]);
         let [ix, iy, iz, _] = divide4([1.0; 4], [c[0], c[1], c[2], 1.0]);
+        // A component so small (below 2^-128) that `1/d` overflows: the slab distances of that
+        // axis would come out infinite although the ray crosses its planes at finite `t`. NaN
+        // instead makes every distance of the axis NaN, which the slab tests drop: the axis
+        // does not constrain the interval (conservative; such rays are rare). An exact zero
+        // keeps its infinity: the ray is parallel to the planes, and the infinities are right.
+        let unbounded = |d: f32, inv: f32| {
+            if d != 0.0 && inv.is_infinite() {
+                f32::NAN
+            } else {
+                inv
+            }
+        };
+        let (ix, iy, iz) = (
+            unbounded(c[0], ix),
+            unbounded(c[1], iy),
+            unbounded(c[2], iz),
+        );
         let shear = Vec3::new(sx, sy, sz);
         Self {
             origin: ray.origin,
@@ -151,7 +170,8 @@ impl PreparedRay {
     /// of the ray inside a box of the scene has `|t| ≤ T = √3 X` (it lies within `√3 max |scene|`
     /// of the origin's `√3 max |o|`, and `|d| ≥ |d_kz|`), and a computed slab distance
     /// `fl(fl(b − o) · fl(1/d))` is within `δ = 3.01 u T + 3 · 2^-150` of the exact one for every
-    /// distance that matters (`u = 2^-24`; the second term covers subnormal results). Widening a
+    /// distance that matters (an axis whose `1/d` overflows is NaN and dropped, see
+    /// [`PreparedRay::new`]) (`u = 2^-24`; the second term covers subnormal results). Widening a
     /// box's exit by `s ≥ 2δ` — added, not scaled, so one addition per box and no test of signs —
     /// then never loses a box the ray meets:
     ///
