@@ -101,6 +101,48 @@ struct Pending {
     triangles: u32,
 }
 
+/// What one search did, counted: nodes whose four child bounds were computed, triangle packets
+/// bounded, and triangles decided by the exact f64 routine (the seed's included). For profiling
+/// ([`ClosestPointTree::closest_point_tallied`]); the plain queries count nothing.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct SearchTally {
+    pub nodes: u64,
+    pub packets: u64,
+    pub exact: u64,
+}
+
+/// Where a search reports its steps: [`SearchTally`] counts them, `()` (the plain queries)
+/// ignores them at no cost.
+trait Tally {
+    fn node(&mut self);
+    fn packet(&mut self);
+    fn exact(&mut self);
+}
+
+impl Tally for () {
+    #[inline(always)]
+    fn node(&mut self) {}
+    #[inline(always)]
+    fn packet(&mut self) {}
+    #[inline(always)]
+    fn exact(&mut self) {}
+}
+
+impl Tally for SearchTally {
+    #[inline(always)]
+    fn node(&mut self) {
+        self.nodes += 1;
+    }
+    #[inline(always)]
+    fn packet(&mut self) {
+        self.packets += 1;
+    }
+    #[inline(always)]
+    fn exact(&mut self) {
+        self.exact += 1;
+    }
+}
+
 /// The best triangle so far of one search.
 struct Best {
     /// The nearest point so far, its triangle's face id and local id (`4 × packet + lane`).
@@ -158,12 +200,58 @@ impl ClosestPointTree {
         self.query(p, &mut Vec::new())
     }
 
+    /// [`ClosestPointTree::closest_point_f64`] by a tree search without seed (the grid is not
+    /// used), counting its steps into `tally`.
+    pub fn closest_point_tallied(&self, p: DVec3, tally: &mut SearchTally) -> Option<ClosestPoint> {
+        self.search(p, None, &mut Vec::new(), tally).map(|(c, _)| c)
+    }
+
+    /// [`ClosestPointTree::closest_points`]'s Morton-ordered, seeded batch search (whatever the
+    /// grid), counting the steps of each point's search: its answer and tally, in the input
+    /// order.
+    pub fn closest_points_tallied(
+        &self,
+        points: &[DVec3],
+    ) -> Vec<(Option<ClosestPoint>, SearchTally)> {
+        let bounds = points
+            .iter()
+            .filter(|p| p.is_finite())
+            .fold(Aabb::EMPTY, |b, p| b.union_point(p.as_vec3()));
+        let mut order: Vec<(u64, usize)> = points
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                (
+                    if p.is_finite() {
+                        morton_code(p.as_vec3(), &bounds)
+                    } else {
+                        u64::MAX
+                    },
+                    i,
+                )
+            })
+            .collect();
+        order.sort_unstable();
+        let mut out = vec![(None, SearchTally::default()); points.len()];
+        let mut stack = Vec::with_capacity(64);
+        for run in order.chunks(Self::RUN) {
+            let mut seed = None;
+            for &(_, i) in run {
+                let mut tally = SearchTally::default();
+                let found = self.search(points[i], seed, &mut stack, &mut tally);
+                seed = found.map(|(_, local)| local).or(seed);
+                out[i] = (found.map(|(c, _)| c), tally);
+            }
+        }
+        out
+    }
+
     /// One query: from the grid's candidates, or a tree search from the grid's seed (or no seed
     /// without a grid).
     #[inline]
     fn query(&self, p: DVec3, stack: &mut Vec<Pending>) -> Option<ClosestPoint> {
         let Some(grid) = &self.grid else {
-            return self.search(p, None, stack).map(|(c, _)| c);
+            return self.search(p, None, stack, &mut ()).map(|(c, _)| c);
         };
         if !p.is_finite() {
             return None;
@@ -176,7 +264,7 @@ impl ClosestPointTree {
                 u: q.u,
                 v: q.v,
             }),
-            CellAnswer::Seed(seed) => self.search(p, Some(seed), stack).map(|(c, _)| c),
+            CellAnswer::Seed(seed) => self.search(p, Some(seed), stack, &mut ()).map(|(c, _)| c),
         }
     }
 
@@ -301,7 +389,7 @@ impl ClosestPointTree {
                 let mut seed = None;
                 let mut stack = Vec::with_capacity(64);
                 for (o, &p) in out.iter_mut().zip(run) {
-                    let found = self.search(p, seed, &mut stack);
+                    let found = self.search(p, seed, &mut stack, &mut ());
                     seed = found.map(|(_, local)| local).or(seed);
                     *o = found.map(|(c, _)| c);
                 }
@@ -320,6 +408,7 @@ impl ClosestPointTree {
         p: DVec3,
         seed: Option<u32>,
         stack: &mut Vec<Pending>,
+        tally: &mut impl Tally,
     ) -> Option<(ClosestPoint, u32)> {
         let tree = &self.tree;
         if tree.nodes.is_empty() || !p.is_finite() {
@@ -333,6 +422,7 @@ impl ClosestPointTree {
             delta: rounding_margin(p, tree.mesh_scale),
         };
         if let Some(local) = seed {
+            tally.exact();
             self.consider(p, local, &mut best);
         }
         stack.clear();
@@ -348,9 +438,10 @@ impl ClosestPointTree {
                 continue;
             }
             if pending.triangles > 0 {
-                self.search_leaf(p, &bracket, pending, &mut best);
+                self.search_leaf(p, &bracket, pending, &mut best, tally);
                 continue;
             }
+            tally.node();
             let node = &tree.nodes[pending.child as usize];
             let bounds = node.distance_squared_lower_bounds(&bracket);
             let mut within = 0u32;
@@ -405,10 +496,18 @@ impl ClosestPointTree {
     /// Tests the triangles of one leaf: each packet's four box bounds first, the exact routine
     /// for those within the threshold.
     #[inline]
-    fn search_leaf(&self, p: DVec3, bracket: &PointBracket, leaf: Pending, best: &mut Best) {
+    fn search_leaf(
+        &self,
+        p: DVec3,
+        bracket: &PointBracket,
+        leaf: Pending,
+        best: &mut Best,
+        tally: &mut impl Tally,
+    ) {
         let mut left = leaf.triangles as usize;
         let mut packet = leaf.child as usize;
         while left > 0 {
+            tally.packet();
             let bounds = self.tree.packets[packet].distance_squared_lower_bounds(bracket);
             let mut within = 0u32;
             for (lane, &bound) in bounds.iter().enumerate() {
@@ -424,6 +523,7 @@ impl ClosestPointTree {
                 within &= within - 1;
                 // The threshold may have dropped since the bounds were compared.
                 if bounds[lane] <= best.threshold || bounds[lane].is_nan() {
+                    tally.exact();
                     self.consider(p, (packet * 4 + lane) as u32, best);
                 }
             }
@@ -494,7 +594,7 @@ impl ClosestPointTree {
 
 impl NearestTriangles for ClosestPointTree {
     fn nearest(&self, p: DVec3) -> Option<u32> {
-        self.search(p, None, &mut Vec::new())
+        self.search(p, None, &mut Vec::new(), &mut ())
             .map(|(_, local)| local)
     }
 

@@ -17,7 +17,7 @@ mod triangle_packet;
 
 pub use candidate_grid::CandidateGridConfig;
 pub use closest_point::{
-    closest_point_brute_force, ClosestPoint, ClosestPointColumns, ClosestPointTree,
+    closest_point_brute_force, ClosestPoint, ClosestPointColumns, ClosestPointTree, SearchTally,
 };
 pub use inside::contains;
 pub use point_triangle::{closest_point_on_triangle, TrianglePoint};
