@@ -36,8 +36,9 @@ pub struct ClosestPoint {
 /// squared distance `d²` so far; at a node bound the four children's box distances
 /// `Σ_axis max(min - p, 0, p - max)²` from below (near the leaves, boxes in a frame facing the
 /// surface patch, module `node_frame`), and visit those not farther than `d²`, nearest
-/// first; in a leaf, bound each triangle from below by a support-function bound (the distance to
-/// the triangle's supporting half-space facing the point), and decide the survivors with
+/// first; in a leaf, bound each triangle from below by the distance to an enclosure (its plane's
+/// slab cut by a cylinder around it and its edges' half-spaces, module `triangle_enclosure`),
+/// and decide the survivors with
 /// [`closest_point_on_triangle`] (Ericson §5.1.5) in f64. The bounds are f32, four at a
 /// time, and conservative (`proximity/box_bound.rs`): nothing that the f64 brute force would pick is
 /// ever pruned, so the answers are the brute force's, ties included (smallest face id).

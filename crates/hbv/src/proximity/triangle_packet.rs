@@ -1,7 +1,8 @@
 //! Four triangles side by side (structure of arrays), the leaf storage of the nearest-point
 //! search: one f32 pass bounds all four distances from below (the distance to each triangle's
-//! enclosing cylinder, exact for points above the triangle's disk), and only the triangles the
-//! bound cannot reject go to the exact f64 routine.
+//! enclosure, module `triangle_enclosure`: exact for points above the face, beside an edge,
+//! and most points beside a vertex), and only the triangles the bound cannot reject go to the
+//! exact f64 routine.
 
 // The kernels loop over lanes by index, as the four-wide instructions they become do.
 #![allow(clippy::needless_range_loop)]
@@ -9,26 +10,31 @@
 use glam::DVec3;
 
 use super::box_bound::{Box4, PointBracket};
+use super::triangle_enclosure::TriangleEnclosure;
 
 /// Up to four triangles: `vertex[k][axis][lane]` is coordinate `axis` of vertex `k` of the
-/// triangle in `lane`, `prim[lane]` its face id. Unused lanes repeat lane 0 (the search never
-/// reads them: a leaf knows how many triangles it has).
+/// triangle in `lane`, `prim[lane]` its face id, and their [`TriangleEnclosure`]s lane by lane.
+/// Unused lanes repeat lane 0 (the search never reads them: a leaf knows how many triangles it
+/// has).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub(super) struct TrianglePacket {
     pub vertex: [[[f32; 4]; 3]; 3],
     pub prim: [u32; 4],
     /// Some triangle lies in a plane of constant x, y or z: its box is flat, and the box bound
-    /// is then tighter than the cylinder bound beside the triangle (walls and floors of modelled
+    /// is then tighter than the enclosure's beside a vertex (walls and floors of modelled
     /// scenes).
     pub axis_aligned: bool,
-    /// Each triangle's enclosing cylinder ([`TriangleCylinder`]), structure of arrays: the
-    /// centre `centre[axis][lane]`, the axis `normal[axis][lane]` (unit to f32 rounding), the
-    /// half height `thickness[lane]` and the radius `radius[lane]`.
+    /// The enclosures: `centre[axis][lane]`, `normal[axis][lane]`, `thickness[lane]`,
+    /// `radius[lane]`, `edge_normal[edge][axis][lane]`, `edge_offset[edge][lane]`,
+    /// `reach_slack[lane]`.
     pub centre: [[f32; 4]; 3],
     pub normal: [[f32; 4]; 3],
     pub thickness: [f32; 4],
     pub radius: [f32; 4],
+    pub edge_normal: [[[f32; 4]; 3]; 3],
+    pub edge_offset: [[f32; 4]; 3],
+    pub reach_slack: [f32; 4],
 }
 
 impl TrianglePacket {
@@ -44,6 +50,9 @@ impl TrianglePacket {
             normal: [[0.0; 4]; 3],
             thickness: [0.0; 4],
             radius: [0.0; 4],
+            edge_normal: [[[0.0; 4]; 3]; 3],
+            edge_offset: [[0.0; 4]; 3],
+            reach_slack: [0.0; 4],
         };
         for lane in 0..4 {
             let (prim, v) = triangles[if lane < triangles.len() { lane } else { 0 }];
@@ -53,13 +62,20 @@ impl TrianglePacket {
                     packet.vertex[k][axis][lane] = vertex[axis];
                 }
             }
-            let cylinder = TriangleCylinder::around(v);
+            let e = TriangleEnclosure::around(v);
             for axis in 0..3 {
-                packet.centre[axis][lane] = cylinder.centre[axis];
-                packet.normal[axis][lane] = cylinder.normal[axis];
+                packet.centre[axis][lane] = e.centre[axis];
+                packet.normal[axis][lane] = e.normal[axis];
+                for edge in 0..3 {
+                    packet.edge_normal[edge][axis][lane] = e.edge_normal[edge][axis];
+                }
             }
-            packet.thickness[lane] = cylinder.thickness;
-            packet.radius[lane] = cylinder.radius;
+            for edge in 0..3 {
+                packet.edge_offset[edge][lane] = e.edge_offset[edge];
+            }
+            packet.thickness[lane] = e.thickness;
+            packet.radius[lane] = e.radius;
+            packet.reach_slack[lane] = e.reach_slack;
         }
         packet
     }
@@ -79,20 +95,18 @@ impl TrianglePacket {
     }
 
     /// Conservative lower bounds of the squared distances from the bracketed point to the four
-    /// triangles: [`TrianglePacket::cylinder_lower_bounds`], and for a packet with an
+    /// triangles: [`TrianglePacket::enclosure_lower_bounds`], and for a packet with an
     /// axis-aligned triangle the larger of that and the distance to each triangle's bounding box
     /// ([`Box4::distance_squared_lower_bounds`]).
     ///
     /// (Session 5 replaced the support-function bound of sessions 3–4, `min_k u·(p - v_k)/|u|`
-    /// with `u = p - centroid`: the cylinder bound costs about half as many instructions and
-    /// rejects as many triangles on spot (8.1 exact tests per query either way), spot 6,886 →
-    /// 5,662 instructions per query, teapot 7,684 → 7,114, bunny 10,890 → 9,325; the larger of
-    /// both bounds rejected more, 5.8 exact tests on spot, but cost more than it saved.)
+    /// with `u = p - centroid`: on spot 8.1 → 5.6 exact tests per query, 1.36 → 1.47 M
+    /// queries/s on one thread; teapot 15.3 → 7.2 exact tests.)
     #[inline(always)]
     pub fn distance_squared_lower_bounds(&self, p: &PointBracket) -> [f32; 4] {
-        let cylinder = self.cylinder_lower_bounds(p);
+        let enclosure = self.enclosure_lower_bounds(p);
         if !self.axis_aligned {
-            return cylinder;
+            return enclosure;
         }
         let mut boxes = Box4::NONE;
         let v = &self.vertex;
@@ -108,151 +122,84 @@ impl TrianglePacket {
         let in_box = boxes.distance_squared_lower_bounds(p);
         let mut bound = [0.0f32; 4];
         for lane in 0..4 {
-            bound[lane] = if in_box[lane] > cylinder[lane] {
+            bound[lane] = if in_box[lane] > enclosure[lane] {
                 in_box[lane]
             } else {
-                cylinder[lane]
+                enclosure[lane]
             };
         }
         bound
     }
 
-    /// Conservative lower bounds of the squared distances from the bracketed point to the four
-    /// triangles' enclosing cylinders ([`TriangleCylinder`]), hence to the triangles: with
-    /// `w = p - centre`, height `h = n·w` and lateral distance `ρ = √(|w|² - h²)`,
-    /// `dist(p, cylinder)² = max(|h| - thickness, 0)² + max(ρ - radius, 0)²` (the cylinder is a
-    /// disk times an interval, in orthogonal coordinates). Exact for a point above the triangle's
-    /// disk, nearly so beside it; one square root per lane.
+    /// The squared distances from the bracketed point to the four triangles' enclosures
+    /// (module `triangle_enclosure`), from below: with `w = p - centre`, `h = n·w`,
+    /// `ρ = √(|w|² - h²)`,
+    /// `max(|h| - thickness, 0)² + max(ρ - radius, max_e (m_e·w - k_e), 0)²`. One square root
+    /// per lane.
     ///
     /// Conservative in f32 (`u = 2⁻²⁴`): `w̃ = fl(lo - centre)` is within `u|w|` of
-    /// `w = lo - centre` (`lo` the bracket's low corner); `h̃` within `5u|w|` of the height
-    /// `n̂·w` (three products and two sums, `|n| = 1 ± u`), so `|h̃|` is lowered by `2⁻²⁰ Σ|w̃_i|`;
-    /// `fl(|w̃|²) - fl(h̃²)` exceeds `ρ²` by at most `18u|w|²`, so `2⁻¹⁸ |w̃|²` is taken off. The
-    /// bracket's spread `s = Σ (hi - lo) ≥ |p - lo|` is taken off both gaps (height and lateral
-    /// distance are 1-Lipschitz in `p`), and the sum of squares is lowered by `2⁻¹⁸` for the
-    /// remaining roundings (each relative to its own result). A bound that is not finite
-    /// (coordinates near the f32 limit) is replaced by 0.
+    /// `w = lo - centre` (`lo` the bracket's low corner); each dot product `h̃`, `m_e·w̃` is within
+    /// `5u Σ|w̃_i|` of the exact one (`|n_i|, |m_ei| ≤ 1`, `|n| = 1 ± 2⁻²⁰`), and the
+    /// subtractions of `k_e` and of the margin round by `u` of `Σ|w̃_i| + |k_e|`, so both the
+    /// height and the edge gaps are lowered by the margin `2⁻²⁰ Σ|w̃_i|` + `2⁻²⁰ max(|k_e|,
+    /// thickness)`; `fl(|w̃|²) - fl(h̃²)` exceeds `ρ²` by at most `18u|w|²`, so `2⁻¹⁸ |w̃|²` is
+    /// taken off, and the square root is lowered by `2⁻²⁰`. The bracket's spread
+    /// `s = Σ (hi - lo) ≥ |p - lo|` is taken off every gap (all are 1-Lipschitz in `p`). The sum
+    /// of squares is lowered by `2⁻¹⁷`: its own rounding, and `n`, `m_e` being unit and
+    /// orthogonal only to `2⁻²⁰`. A bound that is not finite (coordinates near the f32 limit)
+    /// is replaced by 0; a NaN gap counts as 0.
     #[inline(always)]
-    pub fn cylinder_lower_bounds(&self, p: &PointBracket) -> [f32; 4] {
+    pub fn enclosure_lower_bounds(&self, p: &PointBracket) -> [f32; 4] {
         let spread =
-            ((p.hi[0] - p.lo[0]) + (p.hi[1] - p.lo[1]) + (p.hi[2] - p.lo[2])) * (1.0 + SUM_SLACK);
-        let mut ww = [0.0f32; 4];
+            ((p.hi[0] - p.lo[0]) + (p.hi[1] - p.lo[1]) + (p.hi[2] - p.lo[2])) * (1.0 + SLACK);
+        let mut w = [[0.0f32; 4]; 3];
         let mut h = [0.0f32; 4];
         let mut l1 = [0.0f32; 4];
+        let mut ww = [0.0f32; 4];
         for axis in 0..3 {
             for lane in 0..4 {
-                let w = p.lo[axis] - self.centre[axis][lane];
-                ww[lane] += w * w;
-                h[lane] += self.normal[axis][lane] * w;
-                l1[lane] += w.abs();
+                let x = p.lo[axis] - self.centre[axis][lane];
+                w[axis][lane] = x;
+                h[lane] += self.normal[axis][lane] * x;
+                l1[lane] += x.abs();
+                ww[lane] += x * x;
+            }
+        }
+        let mut side = [f32::NEG_INFINITY; 4];
+        for edge in 0..3 {
+            let m = &self.edge_normal[edge];
+            for lane in 0..4 {
+                let s = m[0][lane] * w[0][lane] + m[1][lane] * w[1][lane] + m[2][lane] * w[2][lane]
+                    - self.edge_offset[edge][lane];
+                side[lane] = if s > side[lane] { s } else { side[lane] };
             }
         }
         let mut bound = [0.0f32; 4];
         for lane in 0..4 {
-            let below = self.thickness[lane] + spread + l1[lane] * SUM_SLACK;
-            let height = h[lane].abs() - below;
+            let margin = l1[lane] * SLACK + self.reach_slack[lane] + spread;
+            let height = h[lane].abs() - (self.thickness[lane] + margin);
             let height = if height > 0.0 { height } else { 0.0 };
             let rho2 = ww[lane] - h[lane] * h[lane] - ww[lane] * LATERAL_SLACK;
             let rho2 = if rho2 > 0.0 { rho2 } else { 0.0 };
-            let lateral = rho2.sqrt() * (1.0 - SUM_SLACK) - (self.radius[lane] + spread);
+            let round = rho2.sqrt() * (1.0 - SLACK) - (self.radius[lane] + spread);
+            let edges = side[lane] - margin;
+            let lateral = if round > edges { round } else { edges };
             let lateral = if lateral > 0.0 { lateral } else { 0.0 };
-            let b = (height * height + lateral * lateral) * (1.0 - RATIO_SLACK);
+            let b = (height * height + lateral * lateral) * (1.0 - SQUARES_SLACK);
             bound[lane] = if b < f32::INFINITY { b } else { 0.0 };
         }
         bound
     }
 }
 
-/// `2⁻¹⁸`: the relative slack taken off the cylinder bound's `|w|² - h²` (its rounding is at
-/// most `18 · 2⁻²⁴` of `|w|²`).
+/// `2⁻²⁰`: the relative slack of the enclosure bound's dot products, of the bracket's spread
+/// and of the square root.
+const SLACK: f32 = 1.0 / 1_048_576.0;
+/// `2⁻¹⁸`: the relative slack taken off `|w|² - h²` (its rounding is at most `18 · 2⁻²⁴` of
+/// `|w|²`).
 const LATERAL_SLACK: f32 = 1.0 / 262_144.0;
-
-/// The cylinder around one triangle that [`TrianglePacket::cylinder_lower_bounds`] bounds the
-/// distance to: axis the triangle's unit normal `n` (rounded to f32), centre the centre of its
-/// smallest enclosing circle (the circumcentre of an acute triangle, else the middle of its
-/// longest edge; rounded to f32), radius and half height the largest lateral distance and height
-/// of its vertices from the centre. These are computed in f64 from the exact f32 vertices (with
-/// `n̂ = n / |n|` for the rounded `n`), raised by `2⁻⁴⁰` of the magnitudes involved (the f64
-/// rounding) and rounded up to f32, so that the triangle lies inside the cylinder.
-#[derive(Clone, Copy, Debug)]
-pub(super) struct TriangleCylinder {
-    pub centre: [f32; 3],
-    pub normal: [f32; 3],
-    pub thickness: f32,
-    pub radius: f32,
-}
-
-impl TriangleCylinder {
-    /// The cylinder around a non-degenerate triangle (a degenerate one gets a sphere: thickness
-    /// and radius both its largest vertex distance).
-    pub fn around(v: [glam::Vec3; 3]) -> Self {
-        let [a, b, c] = v.map(|x| x.as_dvec3());
-        let edges = [(b - a, a, b, c), (c - b, b, c, a), (a - c, c, a, b)];
-        // The longest edge and its opposite vertex: obtuse (or right) when the angle there is
-        // at least 90°.
-        let (_, p, q, r) = edges
-            .iter()
-            .copied()
-            .max_by(|x, y| x.0.length_squared().total_cmp(&y.0.length_squared()))
-            .unwrap();
-        let centre = if (p - r).dot(q - r) <= 0.0 {
-            (p + q) * 0.5
-        } else {
-            // Circumcentre: a + (|ac|² (ab × ac) × ab + |ab|² ac × (ab × ac)) / (2 |ab × ac|²).
-            let (ab, ac) = (b - a, c - a);
-            let n = ab.cross(ac);
-            a + (n.cross(ab) * ac.length_squared() + ac.cross(n) * ab.length_squared())
-                / (2.0 * n.length_squared())
-        };
-        let centre = centre.as_vec3();
-        let centre = if centre.is_finite() {
-            centre
-        } else {
-            ((a + b + c) / 3.0).as_vec3()
-        };
-        let normal = (b - a).cross(c - a).normalize_or_zero().as_vec3();
-        let cd = centre.as_dvec3();
-        let nd = normal.as_dvec3();
-        let unit = nd.length();
-        let mut thickness = 0.0f64;
-        let mut radius = 0.0f64;
-        for x in [a, b, c] {
-            let w = x - cd;
-            let magnitude = w.abs().element_sum() * (1.0 + f64::powi(2.0, -40));
-            if unit > 0.5 {
-                let height = w.dot(nd) / unit;
-                let lateral2 = (w.length_squared() - height * height).max(0.0);
-                thickness = thickness.max(height.abs() + magnitude * f64::powi(2.0, -40));
-                radius = radius.max(lateral2.sqrt() + magnitude * f64::powi(2.0, -24));
-            } else {
-                thickness = thickness.max(magnitude);
-                radius = radius.max(magnitude);
-            }
-        }
-        TriangleCylinder {
-            centre: centre.to_array(),
-            normal: normal.to_array(),
-            thickness: f32_above(thickness),
-            radius: f32_above(radius),
-        }
-    }
-}
-
-/// The least f32 not below `x`.
-fn f32_above(x: f64) -> f32 {
-    let near = x as f32;
-    if (near as f64) < x {
-        near.next_up()
-    } else {
-        near
-    }
-}
-
-/// `2⁻²⁰`: the relative slack of the cylinder bound's height (its rounding is at most `5 · 2⁻²⁴`
-/// of `|w|`), of the bracket's spread and of the square root.
-const SUM_SLACK: f32 = 1.0 / 1_048_576.0;
-/// `2⁻¹⁸`: the relative slack of the cylinder bound's final squares and sum.
-const RATIO_SLACK: f32 = 1.0 / 262_144.0;
+/// `2⁻¹⁷`: the relative slack of the final squares and sum.
+const SQUARES_SLACK: f32 = 1.0 / 131_072.0;
 
 #[cfg(test)]
 mod tests {
@@ -302,23 +249,23 @@ mod tests {
                 + DVec3::new(1e-9, -3e-10, 0.0) * size as f64;
             let bracket = PointBracket::new(p);
             let bounds = packet.distance_squared_lower_bounds(&bracket);
-            let cylinder = packet.cylinder_lower_bounds(&bracket);
+            let enclosure = packet.enclosure_lower_bounds(&bracket);
             for (lane, (_, [a, b, c])) in tris.iter().enumerate() {
                 let q = closest_point_on_triangle(p, a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
                 let d2 = (p - q.point).length_squared();
                 let t = prune_threshold(d2, 0.0);
                 prop_assert!(bounds[lane] <= t, "lane {lane}: bound {} > threshold {t} (d² {d2})", bounds[lane]);
-                prop_assert!(cylinder[lane] <= t, "lane {lane}: cylinder {} > threshold {t} (d² {d2})", cylinder[lane]);
+                prop_assert!(enclosure[lane] <= t, "lane {lane}: enclosure {} > threshold {t} (d² {d2})", enclosure[lane]);
             }
         }
     }
 
     /// Slivers and needles (a vertex a tiny way off the opposite edge, or two vertices nearly
     /// together), at any scale and distance from the origin, with points on the triangle's
-    /// plane, just above it, on its edges and far away: the cylinder bound never exceeds the
+    /// plane, just above it, on its edges and far away: the enclosure bound never exceeds the
     /// exact distance's threshold.
     #[test]
-    fn cylinder_bound_holds_for_slivers_and_points_on_the_plane() {
+    fn enclosure_bound_holds_for_slivers_and_points_on_the_plane() {
         let mut runner = proptest::test_runner::TestRunner::new(proptest::test_runner::Config {
             cases: 2048,
             ..Default::default()
@@ -353,7 +300,7 @@ mod tests {
                 let along =
                     a.as_dvec3() + (b - a).as_dvec3() * (s as f64 * 3.0 - 1.0) * lift as f64;
                 let p = along + normal * height as f64 * (b - a).length() as f64;
-                let bound = packet.cylinder_lower_bounds(&PointBracket::new(p))[0];
+                let bound = packet.enclosure_lower_bounds(&PointBracket::new(p))[0];
                 let q = closest_point_on_triangle(p, a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
                 let d2 = (p - q.point).length_squared();
                 let t = prune_threshold(d2, 0.0);
@@ -363,10 +310,10 @@ mod tests {
             .unwrap();
     }
 
-    /// For a point above the triangle the cylinder bound is nearly the distance; beside it,
-    /// nearly the distance to the enclosing disk.
+    /// For a point above the triangle, beside an edge, or beside a vertex in the direction from
+    /// the circle's centre, the enclosure bound is nearly the distance.
     #[test]
-    fn cylinder_bound_is_tight_above_and_beside_a_face() {
+    fn enclosure_bound_is_tight_above_and_beside_a_face() {
         let tri = (
             0,
             [
@@ -376,7 +323,7 @@ mod tests {
             ],
         );
         let packet = TrianglePacket::new(&[tri]);
-        let bound = |p: DVec3| packet.cylinder_lower_bounds(&PointBracket::new(p))[0] as f64;
+        let bound = |p: DVec3| packet.enclosure_lower_bounds(&PointBracket::new(p))[0] as f64;
         let exact = |p: DVec3| {
             let q = closest_point_on_triangle(p, DVec3::ZERO, DVec3::X, DVec3::Y);
             (p - q.point).length_squared()
@@ -389,18 +336,27 @@ mod tests {
             bound(p),
             exact(p)
         );
-        // Beside the hypotenuse, 3 away in the plane and 4 above: the disk (centre (½, ½),
-        // radius √½) is 3 - 0 away laterally, so the bound is 3² + 4² = 25 = the distance².
+        // Beside the hypotenuse, 3 beyond its circle in the plane and 4 above: the edge's
+        // half-space gives the distance (the cylinder only 3² + 4²).
         let side = DVec3::new(0.5, 0.5, 0.0)
             + DVec3::new(1.0, 1.0, 0.0).normalize() * (0.5f64.sqrt() + 3.0);
         let p = side + DVec3::new(0.0, 0.0, 4.0);
         assert!(
-            (bound(p) - 25.0).abs() < 1e-3 && bound(p) <= exact(p),
+            bound(p) > 0.9999 * exact(p) && bound(p) <= exact(p),
             "{} vs {}",
             bound(p),
             exact(p)
         );
-        // Inside the disk, on the plane: nothing to bound.
-        assert_eq!(bound(DVec3::new(0.9, 0.9, 0.0)), 0.0);
+        // Beyond vertex (1, 0, 0) seen from the circle's centre (½, ½, 0), 2 away in the plane
+        // and 1 above: the cylinder gives the distance, 2² + 1² (the edges only 2² / 2 + 1²).
+        let p = DVec3::new(1.0, 0.0, 1.0) + DVec3::new(1.0, -1.0, 0.0).normalize() * 2.0;
+        assert!(
+            (bound(p) - 5.0).abs() < 1e-4 && bound(p) <= exact(p),
+            "{} vs {}",
+            bound(p),
+            exact(p)
+        );
+        // On the face: nothing to bound.
+        assert_eq!(bound(DVec3::new(0.2, 0.2, 0.0)), 0.0);
     }
 }
