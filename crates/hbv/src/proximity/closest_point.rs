@@ -249,7 +249,7 @@ impl ClosestPointTree {
 
     /// One query: from the grid's candidates, or a tree search from the grid's seed (or no seed
     /// without a grid).
-    #[inline]
+    #[inline(always)]
     fn query(&self, p: DVec3, stack: &mut Vec<Pending>) -> Option<ClosestPoint> {
         let Some(grid) = &self.grid else {
             return self.search(p, None, stack, &mut ()).map(|(c, _)| c);
@@ -288,12 +288,7 @@ impl ClosestPointTree {
             let mut out = vec![None; points.len()];
             out.par_chunks_mut(Self::RUN)
                 .zip(points.par_chunks(Self::RUN))
-                .for_each(|(out, run)| {
-                    let mut stack = Vec::with_capacity(64);
-                    for (o, &p) in out.iter_mut().zip(run) {
-                        *o = self.query(p, &mut stack);
-                    }
-                });
+                .for_each(|(out, run)| self.answer_run(run, |k, found| out[k] = found));
             return out;
         }
         let (order, sorted) = self.search_in_morton_order(points);
@@ -331,11 +326,13 @@ impl ClosestPointTree {
             (columns, points.par_chunks(Self::RUN))
                 .into_par_iter()
                 .for_each(|((point, distance, prim, u, v), run)| {
-                    let mut stack = Vec::with_capacity(64);
-                    for (k, &p) in run.iter().enumerate() {
-                        let found = self.query(p, &mut stack);
-                        write_row(found, k, (point, distance, prim, u, v));
-                    }
+                    self.answer_run(run, |k, found| {
+                        write_row(
+                            found,
+                            k,
+                            (&mut *point, &mut *distance, &mut *prim, &mut *u, &mut *v),
+                        )
+                    })
                 });
             return;
         }
@@ -388,6 +385,39 @@ impl ClosestPointTree {
             .zip(in_order.par_chunks(Self::RUN))
             .for_each(|(out, run)| self.search_run(run, out));
         (order, sorted)
+    }
+
+    /// Answers one run of points from the grid (each query's cell), passing point `k`'s answer
+    /// to `write(k, answer)`: compiled for AVX2 and FMA where the CPU has them, as
+    /// [`ClosestPointTree::search_run`].
+    fn answer_run(&self, run: &[DVec3], write: impl FnMut(usize, Option<ClosestPoint>)) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: the CPU has AVX2 and FMA, the features `answer_run_avx2` is compiled for.
+            unsafe { self.answer_run_avx2(run, write) };
+            return;
+        }
+        self.answer_run_portable(run, write);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    fn answer_run_avx2(&self, run: &[DVec3], write: impl FnMut(usize, Option<ClosestPoint>)) {
+        self.answer_run_portable(run, write);
+    }
+
+    /// [`ClosestPointTree::answer_run`] in whatever features its caller is compiled for.
+    #[inline(always)]
+    fn answer_run_portable(
+        &self,
+        run: &[DVec3],
+        mut write: impl FnMut(usize, Option<ClosestPoint>),
+    ) {
+        let mut stack = Vec::with_capacity(64);
+        for (k, &p) in run.iter().enumerate() {
+            write(k, self.query(p, &mut stack));
+        }
     }
 
     /// Searches one run of Morton-ordered points, each seeded with the previous one's answer:
