@@ -65,7 +65,7 @@ impl Default for CandidateGridConfig {
 
 /// One cell: `count > 0` triangles listed from `first` in the grid's candidate array, or
 /// (`count == 0`) the seed triangle `first` of a tree search. Triangles are the search tree's
-/// local ids (`4 × packet + lane`).
+/// local ids (`LANES × packet + lane`, module `triangle_packet`).
 #[derive(Clone, Copy, Debug)]
 struct Cell {
     first: u32,

@@ -9,6 +9,7 @@ use super::candidate_grid::{
 };
 use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
 use super::search_tree::{SearchTree, SearchTreeConfig};
+use super::triangle_packet::LANES;
 use crate::bvh::morton::morton_code;
 use crate::bvh::BuildTree;
 use crate::geometry::Aabb;
@@ -29,7 +30,7 @@ pub struct ClosestPoint {
 }
 
 /// A BVH laid out for nearest-point queries: any [`BuildTree`] collapsed to 4-child nodes with
-/// leaves of four-triangle packets (module `search_tree`), boxes and triangles in f32 as in the
+/// leaves of eight-triangle packets (module `search_tree`), boxes and triangles in f32 as in the
 /// mesh.
 ///
 /// **Search** (branch and bound, as in Larsen et al. 1999 and Ericson §6.5): keep the best
@@ -146,7 +147,7 @@ impl Tally for SearchTally {
 
 /// The best triangle so far of one search.
 struct Best {
-    /// The nearest point so far, its triangle's face id and local id (`4 × packet + lane`).
+    /// The nearest point so far, its triangle's face id and local id (`LANES × packet + lane`).
     found: Option<(TrianglePoint, u32, u32)>,
     d2: f64,
     /// [`prune_threshold`] of `d2`.
@@ -456,8 +457,8 @@ impl ClosestPointTree {
     /// Points per run of [`ClosestPointTree::closest_points`]: one rayon task, seeded in turn.
     pub const RUN: usize = 256;
 
-    /// The branch-and-bound search, starting from triangle `seed` (`4 × packet + lane`) as the
-    /// best so far when given; returns the answer and its triangle's `4 × packet + lane`.
+    /// The branch-and-bound search, starting from triangle `seed` (`LANES × packet + lane`) as the
+    /// best so far when given; returns the answer and its triangle's `LANES × packet + lane`.
     /// `stack` is scratch space, reused between searches.
     #[inline(always)]
     fn search(
@@ -574,27 +575,27 @@ impl ClosestPointTree {
                 within |= (keep as u32) << lane;
             }
             // Lanes past the leaf's last triangle repeat lane 0.
-            within &= (1u32 << left.min(4)) - 1;
+            within &= (1u32 << left.min(LANES)) - 1;
             while within != 0 {
                 let lane = within.trailing_zeros() as usize;
                 within &= within - 1;
                 // The threshold may have dropped since the bounds were compared.
                 if bounds[lane] <= best.threshold || bounds[lane].is_nan() {
                     tally.exact();
-                    self.consider(p, (packet * 4 + lane) as u32, best);
+                    self.consider(p, (packet * LANES + lane) as u32, best);
                 }
             }
-            left = left.saturating_sub(4);
+            left = left.saturating_sub(LANES);
             packet += 1;
         }
     }
 
-    /// Decides triangle `local` (`4 × packet + lane`) in f64 and keeps it if it is nearer than
+    /// Decides triangle `local` (`LANES × packet + lane`) in f64 and keeps it if it is nearer than
     /// the best, or as near with a smaller face id.
     #[inline(always)]
     fn consider(&self, p: DVec3, local: u32, best: &mut Best) {
-        let packet = &self.tree.packets[local as usize / 4];
-        let lane = local as usize % 4;
+        let packet = &self.tree.packets[local as usize / LANES];
+        let lane = local as usize % LANES;
         let [a, b, c] = packet.triangle(lane);
         let prim = packet.prim[lane];
         let q = closest_point_on_triangle(p, a, b, c);
@@ -626,7 +627,7 @@ impl ClosestPointTree {
         while let Some((child, triangles)) = stack.pop() {
             if triangles > 0 {
                 for k in 0..triangles {
-                    let local = child * 4 + k;
+                    let local = child * LANES as u32 + k;
                     if self.distance_squared(p, local) <= radius_squared {
                         found.push(local);
                         if found.len() > limit {
@@ -656,8 +657,8 @@ impl NearestTriangles for ClosestPointTree {
     }
 
     fn distance_squared(&self, p: DVec3, local: u32) -> f64 {
-        let packet = &self.tree.packets[local as usize / 4];
-        let [a, b, c] = packet.triangle(local as usize % 4);
+        let packet = &self.tree.packets[local as usize / LANES];
+        let [a, b, c] = packet.triangle(local as usize % LANES);
         (p - closest_point_on_triangle(p, a, b, c).point).length_squared()
     }
 
@@ -670,8 +671,8 @@ impl NearestTriangles for ClosestPointTree {
     }
 
     fn triangle(&self, local: u32) -> ListedTriangle {
-        let packet = &self.tree.packets[local as usize / 4];
-        let lane = local as usize % 4;
+        let packet = &self.tree.packets[local as usize / LANES];
+        let lane = local as usize % LANES;
         ListedTriangle {
             vertices: packet.triangle(lane),
             prim: packet.prim[lane],

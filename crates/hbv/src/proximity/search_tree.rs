@@ -6,7 +6,7 @@
 //! a node's children are its build node's children; while there are fewer than four, the
 //! internal child of largest surface area is replaced by its own children (when they fit). A
 //! child with at most [`SearchTreeConfig::leaf_triangles`] triangles below it becomes one leaf
-//! (its whole subtree, flattened), since testing a few triangles in packets of four costs less
+//! (its whole subtree, flattened), since testing a few triangles in packets of eight costs less
 //! than visiting nodes. A build node with more than four children (n-ary builders) is split into
 //! four groups along its longest axis, each group a node of its own. Near the leaves (at most
 //! [`FRAME_MAX_TRIANGLES`] below), a node whose triangles face one way gets its four boxes in a
@@ -16,7 +16,7 @@ use glam::{DVec3, Vec3};
 
 use super::box_bound::{Box4, PointBracket};
 use super::node_frame::{NodeFrame, FRAME_SHRINK};
-use super::triangle_packet::TrianglePacket;
+use super::triangle_packet::{TrianglePacket, LANES};
 use crate::bvh::{BuildTree, NodeContent, NodeId};
 use crate::geometry::Aabb;
 use crate::mesh::TriangleMesh;
@@ -238,8 +238,8 @@ impl SearchTree {
             }
             kept.push((p, [t.p0, t.p1, t.p2]));
         }
-        for four in kept.chunks(4) {
-            self.packets.push(TrianglePacket::new(four));
+        for group in kept.chunks(LANES) {
+            self.packets.push(TrianglePacket::new(group));
         }
         kept.len() as u32
     }

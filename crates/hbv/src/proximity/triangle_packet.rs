@@ -1,5 +1,5 @@
-//! Four triangles side by side (structure of arrays), the leaf storage of the nearest-point
-//! search: one f32 pass bounds all four distances from below (the distance to each triangle's
+//! [`LANES`] triangles side by side (structure of arrays), the leaf storage of the nearest-point
+//! search: one f32 pass bounds all their distances from below (the distance to each triangle's
 //! enclosure, module `triangle_enclosure`: exact for points above the face, beside an edge,
 //! and most points beside a vertex), and only the triangles the bound cannot reject go to the
 //! exact f64 routine.
@@ -12,15 +12,19 @@ use glam::DVec3;
 use super::box_bound::{Box4, PointBracket};
 use super::triangle_enclosure::TriangleEnclosure;
 
-/// Up to four triangles: `vertex[k][axis][lane]` is coordinate `axis` of vertex `k` of the
+/// Triangles side by side in a packet: eight, one AVX register of f32 (two SSE registers
+/// without AVX).
+pub(super) const LANES: usize = 8;
+
+/// Up to [`LANES`] triangles: `vertex[k][axis][lane]` is coordinate `axis` of vertex `k` of the
 /// triangle in `lane`, `prim[lane]` its face id, and their [`TriangleEnclosure`]s lane by lane.
 /// Unused lanes repeat lane 0 (the search never reads them: a leaf knows how many triangles it
 /// has).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
 pub(super) struct TrianglePacket {
-    pub vertex: [[[f32; 4]; 3]; 3],
-    pub prim: [u32; 4],
+    pub vertex: [[[f32; LANES]; 3]; 3],
+    pub prim: [u32; LANES],
     /// Some triangle lies in a plane of constant x, y or z: its box is flat, and the box bound
     /// is then tighter than the enclosure's beside a vertex (walls and floors of modelled
     /// scenes).
@@ -28,33 +32,33 @@ pub(super) struct TrianglePacket {
     /// The enclosures: `centre[axis][lane]`, `normal[axis][lane]`, `thickness[lane]`,
     /// `radius[lane]`, `edge_normal[edge][axis][lane]`, `edge_offset[edge][lane]`,
     /// `reach_slack[lane]`.
-    pub centre: [[f32; 4]; 3],
-    pub normal: [[f32; 4]; 3],
-    pub thickness: [f32; 4],
-    pub radius: [f32; 4],
-    pub edge_normal: [[[f32; 4]; 3]; 3],
-    pub edge_offset: [[f32; 4]; 3],
-    pub reach_slack: [f32; 4],
+    pub centre: [[f32; LANES]; 3],
+    pub normal: [[f32; LANES]; 3],
+    pub thickness: [f32; LANES],
+    pub radius: [f32; LANES],
+    pub edge_normal: [[[f32; LANES]; 3]; 3],
+    pub edge_offset: [[f32; LANES]; 3],
+    pub reach_slack: [f32; LANES],
 }
 
 impl TrianglePacket {
-    /// Packs up to four `(face id, vertices)` triangles; `triangles` must not be empty.
+    /// Packs up to [`LANES`] `(face id, vertices)` triangles; `triangles` must not be empty.
     pub fn new(triangles: &[(u32, [glam::Vec3; 3])]) -> Self {
         let mut packet = TrianglePacket {
-            vertex: [[[0.0; 4]; 3]; 3],
-            prim: [0; 4],
+            vertex: [[[0.0; LANES]; 3]; 3],
+            prim: [0; LANES],
             axis_aligned: triangles
                 .iter()
                 .any(|(_, [a, b, c])| (0..3).any(|i| a[i] == b[i] && b[i] == c[i])),
-            centre: [[0.0; 4]; 3],
-            normal: [[0.0; 4]; 3],
-            thickness: [0.0; 4],
-            radius: [0.0; 4],
-            edge_normal: [[[0.0; 4]; 3]; 3],
-            edge_offset: [[0.0; 4]; 3],
-            reach_slack: [0.0; 4],
+            centre: [[0.0; LANES]; 3],
+            normal: [[0.0; LANES]; 3],
+            thickness: [0.0; LANES],
+            radius: [0.0; LANES],
+            edge_normal: [[[0.0; LANES]; 3]; 3],
+            edge_offset: [[0.0; LANES]; 3],
+            reach_slack: [0.0; LANES],
         };
-        for lane in 0..4 {
+        for lane in 0..LANES {
             let (prim, v) = triangles[if lane < triangles.len() { lane } else { 0 }];
             packet.prim[lane] = prim;
             for (k, vertex) in v.iter().enumerate() {
@@ -94,8 +98,8 @@ impl TrianglePacket {
         [at(0), at(1), at(2)]
     }
 
-    /// Conservative lower bounds of the squared distances from the bracketed point to the four
-    /// triangles: [`TrianglePacket::enclosure_lower_bounds`], and for a packet with an
+    /// Conservative lower bounds of the squared distances from the bracketed point to the
+    /// packet's triangles: [`TrianglePacket::enclosure_lower_bounds`], and for a packet with an
     /// axis-aligned triangle the larger of that and the distance to each triangle's bounding box
     /// ([`Box4::distance_squared_lower_bounds`]).
     ///
@@ -103,35 +107,37 @@ impl TrianglePacket {
     /// with `u = p - centroid`: on spot 8.1 → 5.6 exact tests per query, 1.36 → 1.47 M
     /// queries/s on one thread; teapot 15.3 → 7.2 exact tests.)
     #[inline(always)]
-    pub fn distance_squared_lower_bounds(&self, p: &PointBracket) -> [f32; 4] {
+    pub fn distance_squared_lower_bounds(&self, p: &PointBracket) -> [f32; LANES] {
         let enclosure = self.enclosure_lower_bounds(p);
         if !self.axis_aligned {
             return enclosure;
         }
-        let mut boxes = Box4::NONE;
+        let mut bound = enclosure;
         let v = &self.vertex;
-        for axis in 0..3 {
-            for lane in 0..4 {
-                let (a, b, c) = (v[0][axis][lane], v[1][axis][lane], v[2][axis][lane]);
-                let lo = if a < b { a } else { b };
-                let hi = if a > b { a } else { b };
-                boxes.min[axis][lane] = if lo < c { lo } else { c };
-                boxes.max[axis][lane] = if hi > c { hi } else { c };
+        for half in 0..LANES / 4 {
+            let mut boxes = Box4::NONE;
+            for axis in 0..3 {
+                for k in 0..4 {
+                    let lane = half * 4 + k;
+                    let (a, b, c) = (v[0][axis][lane], v[1][axis][lane], v[2][axis][lane]);
+                    let lo = if a < b { a } else { b };
+                    let hi = if a > b { a } else { b };
+                    boxes.min[axis][k] = if lo < c { lo } else { c };
+                    boxes.max[axis][k] = if hi > c { hi } else { c };
+                }
             }
-        }
-        let in_box = boxes.distance_squared_lower_bounds(p);
-        let mut bound = [0.0f32; 4];
-        for lane in 0..4 {
-            bound[lane] = if in_box[lane] > enclosure[lane] {
-                in_box[lane]
-            } else {
-                enclosure[lane]
-            };
+            let in_box = boxes.distance_squared_lower_bounds(p);
+            for k in 0..4 {
+                let lane = half * 4 + k;
+                if in_box[k] > bound[lane] {
+                    bound[lane] = in_box[k];
+                }
+            }
         }
         bound
     }
 
-    /// The squared distances from the bracketed point to the four triangles' enclosures
+    /// The squared distances from the bracketed point to the triangles' enclosures
     /// (module `triangle_enclosure`), from below: with `w = p - centre`, `h = n·w`,
     /// `ρ = √(|w|² - h²)`,
     /// `max(|h| - thickness, 0)² + max(ρ - radius, max_e (m_e·w - k_e), 0)²`. One square root
@@ -149,15 +155,15 @@ impl TrianglePacket {
     /// orthogonal only to `2⁻²⁰`. A bound that is not finite (coordinates near the f32 limit)
     /// is replaced by 0; a NaN gap counts as 0.
     #[inline(always)]
-    pub fn enclosure_lower_bounds(&self, p: &PointBracket) -> [f32; 4] {
+    pub fn enclosure_lower_bounds(&self, p: &PointBracket) -> [f32; LANES] {
         let spread =
             ((p.hi[0] - p.lo[0]) + (p.hi[1] - p.lo[1]) + (p.hi[2] - p.lo[2])) * (1.0 + SLACK);
-        let mut w = [[0.0f32; 4]; 3];
-        let mut h = [0.0f32; 4];
-        let mut l1 = [0.0f32; 4];
-        let mut ww = [0.0f32; 4];
+        let mut w = [[0.0f32; LANES]; 3];
+        let mut h = [0.0f32; LANES];
+        let mut l1 = [0.0f32; LANES];
+        let mut ww = [0.0f32; LANES];
         for axis in 0..3 {
-            for lane in 0..4 {
+            for lane in 0..LANES {
                 let x = p.lo[axis] - self.centre[axis][lane];
                 w[axis][lane] = x;
                 h[lane] += self.normal[axis][lane] * x;
@@ -165,17 +171,17 @@ impl TrianglePacket {
                 ww[lane] += x * x;
             }
         }
-        let mut side = [f32::NEG_INFINITY; 4];
+        let mut side = [f32::NEG_INFINITY; LANES];
         for edge in 0..3 {
             let m = &self.edge_normal[edge];
-            for lane in 0..4 {
+            for lane in 0..LANES {
                 let s = m[0][lane] * w[0][lane] + m[1][lane] * w[1][lane] + m[2][lane] * w[2][lane]
                     - self.edge_offset[edge][lane];
                 side[lane] = if s > side[lane] { s } else { side[lane] };
             }
         }
-        let mut bound = [0.0f32; 4];
-        for lane in 0..4 {
+        let mut bound = [0.0f32; LANES];
+        for lane in 0..LANES {
             let margin = l1[lane] * SLACK + self.reach_slack[lane] + spread;
             let height = h[lane].abs() - (self.thickness[lane] + margin);
             let height = if height > 0.0 { height } else { 0.0 };
@@ -228,7 +234,7 @@ mod tests {
                 }
                 [a, b, c]
             });
-            (vec3(c), Just(s), prop::collection::vec(triangle, 4))
+            (vec3(c), Just(s), prop::collection::vec(triangle, LANES))
         })
     }
 
