@@ -8,7 +8,7 @@ use super::candidate_grid::{
     CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, NearestTriangles,
 };
 use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
-use super::search_tree::{SearchTree, SearchTreeConfig};
+use super::search_tree::{SearchTree, SearchTreeConfig, WIDTH};
 use super::triangle_packet::LANES;
 use crate::bvh::morton::morton_code;
 use crate::bvh::BuildTree;
@@ -29,18 +29,18 @@ pub struct ClosestPoint {
     pub v: f64,
 }
 
-/// A BVH laid out for nearest-point queries: any [`BuildTree`] collapsed to 4-child nodes with
+/// A BVH laid out for nearest-point queries: any [`BuildTree`] collapsed to 8-child nodes with
 /// leaves of eight-triangle packets (module `search_tree`), boxes and triangles in f32 as in the
 /// mesh.
 ///
 /// **Search** (branch and bound, as in Larsen et al. 1999 and Ericson §6.5): keep the best
-/// squared distance `d²` so far; at a node bound the four children's box distances
+/// squared distance `d²` so far; at a node bound the children's box distances
 /// `Σ_axis max(min - p, 0, p - max)²` from below (near the leaves, boxes in a frame facing the
 /// surface patch, module `node_frame`), and visit those not farther than `d²`, nearest
 /// first; in a leaf, bound each triangle from below by the distance to an enclosure (its plane's
 /// slab cut by a cylinder around it and its edges' half-spaces, module `triangle_enclosure`),
 /// and decide the survivors with
-/// [`closest_point_on_triangle`] (Ericson §5.1.5) in f64. The bounds are f32, four at a
+/// [`closest_point_on_triangle`] (Ericson §5.1.5) in f64. The bounds are f32, eight at a
 /// time, and conservative (`proximity/box_bound.rs`): nothing that the f64 brute force would pick is
 /// ever pruned, so the answers are the brute force's, ties included (smallest face id).
 /// Degenerate triangles are left out, as in every tree (they have no face to be nearest to, and
@@ -103,7 +103,7 @@ struct Pending {
     triangles: u32,
 }
 
-/// What one search did, counted: nodes whose four child bounds were computed, triangle packets
+/// What one search did, counted: nodes whose child bounds were computed, triangle packets
 /// bounded, and triangles decided by the exact f64 routine (the seed's included). For profiling
 /// ([`ClosestPointTree::closest_point_tallied`]); the plain queries count nothing.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -512,7 +512,7 @@ impl ClosestPointTree {
                 bound: 0.0,
                 child: 0,
                 triangles: 0,
-            }; 4];
+            }; WIDTH];
             let mut count = 0;
             while within != 0 {
                 let k = within.trailing_zeros() as usize;
@@ -551,7 +551,7 @@ impl ClosestPointTree {
         })
     }
 
-    /// Tests the triangles of one leaf: each packet's four box bounds first, the exact routine
+    /// Tests the triangles of one leaf: each packet's bounds first, the exact routine
     /// for those within the threshold.
     #[inline(always)]
     fn search_leaf(
