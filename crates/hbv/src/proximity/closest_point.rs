@@ -531,10 +531,9 @@ impl ClosestPointTree {
                 count += 1;
             }
             if count > 0 {
-                // One push each: `extend_from_slice` calls `memmove`, a tenth of the time here.
-                for &entry in &near[..count - 1] {
-                    stack.push(entry);
-                }
+                // `extend` of a copied slice iterator: one capacity check, no `memmove` call
+                // (`extend_from_slice` made one, a tenth of the time here).
+                stack.extend(near[..count - 1].iter().copied());
                 next = Some(near[count - 1]);
             }
         }
