@@ -496,7 +496,7 @@ impl ClosestPointTree {
                 continue;
             }
             if pending.triangles > 0 {
-                self.search_leaf(p, &bracket, pending, &mut best, tally);
+                self.search_leaf(p, &bracket, pending, seed, &mut best, tally);
                 continue;
             }
             tally.node();
@@ -551,16 +551,22 @@ impl ClosestPointTree {
     }
 
     /// Tests the triangles of one leaf: each packet's bounds first, the exact routine
-    /// for those within the threshold.
+    /// for those within the threshold, but the search's seed (decided first, and always within
+    /// the threshold of its own distance: on spot 5.6 → 5.0 exact tests per query).
     #[inline(always)]
     fn search_leaf(
         &self,
         p: DVec3,
         bracket: &PointBracket,
         leaf: Pending,
+        seed: Option<u32>,
         best: &mut Best,
         tally: &mut impl Tally,
     ) {
+        let (seed_packet, seed_lane) = match seed {
+            Some(local) => (local as usize / LANES, local as usize % LANES),
+            None => (usize::MAX, 0),
+        };
         let mut left = leaf.triangles as usize;
         let mut packet = leaf.child as usize;
         while left > 0 {
@@ -575,6 +581,9 @@ impl ClosestPointTree {
             }
             // Lanes past the leaf's last triangle repeat lane 0.
             within &= (1u32 << left.min(LANES)) - 1;
+            if packet == seed_packet {
+                within &= !(1u32 << seed_lane);
+            }
             while within != 0 {
                 let lane = within.trailing_zeros() as usize;
                 within &= within - 1;
