@@ -715,3 +715,61 @@ pub fn closest_point_brute_force(mesh: &TriangleMesh, p: DVec3) -> Option<Closes
     }
     best
 }
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
+    use crate::mesh::procedural::{ground_plane, icosphere};
+
+    /// Points around `mesh`'s box (a lattice, so that neighbours in Morton order seed each
+    /// other), a few far away.
+    fn points_around(mesh: &TriangleMesh) -> Vec<DVec3> {
+        let b = mesh.bounds();
+        let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
+        let mut points = Vec::new();
+        for i in 0..12 {
+            for j in 0..12 {
+                for k in 0..12 {
+                    let t = DVec3::new(i as f64, j as f64, k as f64) / 11.0 * 1.4 - 0.2;
+                    points.push(lo + (hi - lo) * t);
+                }
+            }
+        }
+        points.extend([DVec3::splat(1e6), DVec3::new(-3e3, 2.0, 0.5)]);
+        points
+    }
+
+    /// The batch runs give the same answers in the portable build as in the AVX2 one the CPU
+    /// picks (on a CPU without AVX2 both are the portable one), with and without a grid.
+    #[test]
+    fn portable_and_detected_runs_agree() {
+        let sphere = icosphere(Vec3::new(0.5, -1.0, 2.0), 1.5, 3);
+        let floor = ground_plane(4.0, -2.0, 1);
+        for (mesh, cells) in [(sphere, 0), (floor, CandidateGridConfig::default().cells)] {
+            let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+            let grid = CandidateGridConfig {
+                cells,
+                min_listing: 0.0,
+                ..CandidateGridConfig::default()
+            };
+            let search =
+                ClosestPointTree::with_grid(&tree, &mesh, SearchTreeConfig::default(), grid);
+            let points = points_around(&mesh);
+            let n = points.len();
+            let (mut detected, mut portable) = (vec![None; n], vec![None; n]);
+            search.search_run(&points, &mut detected);
+            search.search_run_portable(&points, &mut portable);
+            assert_eq!(detected, portable);
+            let (mut detected, mut portable) = (vec![None; n], vec![None; n]);
+            search.answer_run(&points, |k, found| detected[k] = found);
+            search.answer_run_portable(&points, |k, found| portable[k] = found);
+            assert_eq!(detected, portable);
+            for (i, p) in points.iter().enumerate() {
+                assert_eq!(portable[i], closest_point_brute_force(&mesh, *p), "{p:?}");
+            }
+        }
+    }
+}
