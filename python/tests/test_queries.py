@@ -1,6 +1,7 @@
 """Queries against float64 brute force: closest hit, all hits, counts, inside, closest point."""
 
 import numpy as np
+import pytest
 
 import hbv
 from conftest import icosphere, random_rays
@@ -115,6 +116,26 @@ def test_closest_point_matches_float64_brute_force(triangle_soup):
     tri = tris[got["prim"]]
     u, w = got["u"][:, None], got["v"][:, None]
     np.testing.assert_allclose((1 - u - w) * tri[:, 0] + u * tri[:, 1] + w * tri[:, 2], got["point"], atol=1e-12)
+
+
+def test_closest_point_reads_every_array_layout_alike():
+    """float32 and float64, C-ordered (read in place), Fortran-ordered, strided and integer
+    points give the same answers, and a wrong shape a clear error."""
+    v, f = icosphere(2, radius=1.0)
+    bvh = hbv.BVH(hbv.Mesh(v, f))
+    rng = np.random.default_rng(9)
+    p32 = rng.uniform(-2, 2, (300, 3)).astype(np.float32)
+    want = bvh.closest_point(p32.astype(np.float64))
+    wide = np.zeros((300, 6), np.float32)
+    wide[:, ::2] = p32
+    for layout in [p32, np.asfortranarray(p32), wide[:, ::2], p32.astype(np.float64).T.copy().T]:
+        got = bvh.closest_point(layout)
+        for key in want:
+            np.testing.assert_array_equal(got[key], want[key])
+    whole = np.array([[1, 2, 0], [0, 0, 3]], dtype=np.int32)
+    np.testing.assert_array_equal(bvh.closest_point(whole)["prim"], bvh.closest_point(whole.astype(np.float64))["prim"])
+    with pytest.raises((TypeError, ValueError)):
+        bvh.closest_point(np.zeros((4, 2), np.float32))
 
 
 def test_closest_point_on_a_sphere():

@@ -53,6 +53,18 @@ pub struct PyBvh {
 
 /// Query points as f64 `(x, y, z)`: float32 or float64 input, shape (N, 3).
 fn read_points(obj: &Bound<'_, PyAny>) -> PyResult<Vec<DVec3>> {
+    // C-ordered float32 or float64 (N, 3) arrays, the common case, are read in place: one pass,
+    // no float64 copy made by NumPy first.
+    if let Ok(a) = obj.cast::<numpy::PyArray2<f32>>() {
+        if let Some(points) = contiguous_points(&a.readonly().as_array()) {
+            return Ok(points);
+        }
+    }
+    if let Ok(a) = obj.cast::<numpy::PyArray2<f64>>() {
+        if let Some(points) = contiguous_points(&a.readonly().as_array()) {
+            return Ok(points);
+        }
+    }
     let array = obj.py().import("numpy")?.call_method1("asarray", (obj,))?;
     let kind: String = array.getattr("dtype")?.getattr("kind")?.extract()?;
     if kind == "f" || kind == "i" || kind == "u" {
@@ -74,6 +86,21 @@ fn read_points(obj: &Bound<'_, PyAny>) -> PyResult<Vec<DVec3>> {
     Err(PyTypeError::new_err(
         "points: expected a float array of shape (N, 3)",
     ))
+}
+
+/// The rows of a C-ordered (N, 3) array as f64 points; `None` for another shape or order.
+fn contiguous_points<T: Copy + Into<f64>>(
+    view: &numpy::ndarray::ArrayView2<'_, T>,
+) -> Option<Vec<DVec3>> {
+    if view.shape()[1] != 3 {
+        return None;
+    }
+    let flat = view.as_slice()?;
+    Some(
+        flat.chunks_exact(3)
+            .map(|r| DVec3::new(r[0].into(), r[1].into(), r[2].into()))
+            .collect(),
+    )
 }
 
 impl PyBvh {

@@ -11,7 +11,7 @@ use hbv::glam::{DVec3, Vec3};
 use hbv::mesh::procedural::{icosphere, torus};
 use hbv::proximity::{
     closest_point_brute_force, contains, CandidateGridConfig, ClosestPointColumns,
-    ClosestPointTree, SearchTreeConfig,
+    ClosestPointTree, SearchTally, SearchTreeConfig,
 };
 use hbv::{BruteForce, TriangleMesh};
 use proptest::prelude::*;
@@ -229,6 +229,30 @@ proptest! {
         assert_closest_points_agree(&mesh, order, leaf, &points)?;
     }
 
+    /// A room with one detailed object: grids of every kind, the walls' cells answering from
+    /// their lists and the object's seeding searches, against the brute force.
+    #[test]
+    fn room_with_an_object_closest_point_equals_brute_force((mesh, points) in mesh_and_points(room_with_object()), order in order(), grid in grid_config()) {
+        assert_closest_points_agree_with(&mesh, order, 4, SearchTreeConfig::default(), grid, &points)?;
+    }
+
+    /// The counted search (`closest_points_tallied`, for profiling) gives the same answers,
+    /// and counts at least one exact test for every point with an answer.
+    #[test]
+    fn tallied_search_gives_the_same_answers((mesh, points) in mesh_and_points(closed_mesh())) {
+        let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+        let search = ClosestPointTree::new(&tree, &mesh);
+        let as_f64: Vec<_> = points.iter().map(|p| p.as_dvec3()).collect();
+        for (i, (got, tally)) in search.closest_points_tallied(&as_f64).into_iter().enumerate() {
+            prop_assert_eq!(closest_point_brute_force(&mesh, as_f64[i]), got);
+            let mut single = SearchTally::default();
+            prop_assert_eq!(search.closest_point_tallied(as_f64[i], &mut single), got);
+            if got.is_some() {
+                prop_assert!(tally.exact >= 1 && single.exact >= 1 && single.nodes >= 1);
+            }
+        }
+    }
+
     #[test]
     fn closed_mesh_closest_point_equals_brute_force((mesh, points) in mesh_and_points(closed_mesh()), order in order(), leaf in 1usize..9) {
         assert_closest_points_agree(&mesh, order, leaf, &points)?;
@@ -244,6 +268,44 @@ proptest! {
             prop_assert_eq!(contains(&reference, *p), contains(&bvh, *p), "{:?}", p);
         }
     }
+}
+
+/// A room of twelve large wall triangles with one detailed object inside (an icosphere of 80 or
+/// 320 small triangles, anywhere from the middle to touching a wall), scaled and moved: the
+/// candidate grid lists the walls' cells and seeds tree searches near the object.
+fn room_with_object() -> impl Strategy<Value = TriangleMesh> {
+    (
+        prop_oneof![Just(1.0f32), scale()],
+        prop_oneof![Just(Vec3::ZERO), point(10.0), point(1e6)],
+        (0.05f32..0.95, 0.05f32..0.95, 0.05f32..0.95),
+        prop_oneof![0.01f32..0.05, 0.05f32..0.45],
+        1u32..3,
+    )
+        .prop_map(|(s, shift, (x, y, z), radius, subdivisions)| {
+            let mut positions: Vec<Vec3> = (0..8)
+                .map(|k| Vec3::new((k & 1) as f32, (k >> 1 & 1) as f32, (k >> 2 & 1) as f32))
+                .collect();
+            let mut faces: Vec<[u32; 3]> = vec![
+                [0, 1, 3],
+                [0, 3, 2],
+                [4, 6, 7],
+                [4, 7, 5],
+                [0, 4, 5],
+                [0, 5, 1],
+                [2, 3, 7],
+                [2, 7, 6],
+                [0, 2, 6],
+                [0, 6, 4],
+                [1, 5, 7],
+                [1, 7, 3],
+            ];
+            let object = icosphere(Vec3::new(x, y, z), radius, subdivisions);
+            let base = positions.len() as u32;
+            positions.extend_from_slice(object.positions());
+            faces.extend(object.indices().iter().map(|t| t.map(|i| i + base)));
+            let positions = positions.into_iter().map(|p| p * s + shift * s).collect();
+            TriangleMesh::new(positions, faces).unwrap()
+        })
 }
 
 /// An `n × n` grid of squares (two triangles each) over the unit square, waving by `wave` along

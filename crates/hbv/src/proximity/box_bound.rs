@@ -3,7 +3,7 @@
 //! nearest-point search.
 //!
 //! The search decides in f64 ([`super::point_triangle`]), but most of its work is rejecting
-//! nodes by their boxes (and triangles by the support bound of `triangle_packet`, compared with
+//! nodes by their boxes (and triangles by the enclosure bound of `triangle_packet`, compared with
 //! the same threshold). Those tests are done in f32, four lanes at once
 //! (plain arrays that the compiler turns into SSE: no `unsafe`), and are made *conservative*:
 //! a box is rejected only when its real distance exceeds the best f64 distance so far, so the
@@ -29,37 +29,40 @@
 
 use glam::DVec3;
 
-/// Four axis-aligned boxes, structure of arrays: `min[axis][lane]`, `max[axis][lane]`.
+/// `N` axis-aligned boxes, structure of arrays: `min[axis][lane]`, `max[axis][lane]`.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(32))]
-pub(super) struct Box4 {
-    pub min: [[f32; 4]; 3],
-    pub max: [[f32; 4]; 3],
+pub(super) struct Boxes<const N: usize> {
+    pub min: [[f32; N]; 3],
+    pub max: [[f32; N]; 3],
 }
 
-impl Box4 {
-    /// Four slots that hold nothing: NaN bounds, so that their distance bound is NaN and fails
+/// Four boxes (a triangle packet's half, tests).
+pub(super) type Box4 = Boxes<4>;
+
+impl<const N: usize> Boxes<N> {
+    /// Slots that hold nothing: NaN bounds, so that their distance bound is NaN and fails
     /// every `bound <= threshold` test, whatever the threshold.
-    pub const NONE: Box4 = Box4 {
-        min: [[f32::NAN; 4]; 3],
-        max: [[f32::NAN; 4]; 3],
+    pub const NONE: Boxes<N> = Boxes {
+        min: [[f32::NAN; N]; 3],
+        max: [[f32::NAN; N]; 3],
     };
 
     /// Conservative lower bounds of the squared distances from the point bracketed by `p` to
     /// each box (0 inside): `Σ_axis max(min - hi, lo - max, 0)²` in f32; see the module's notes. Never
     /// NaN for a box of finite (or infinite) bounds.
     #[inline(always)]
-    pub fn distance_squared_lower_bounds(&self, p: &PointBracket) -> [f32; 4] {
-        let mut d2 = [0.0f32; 4];
+    pub fn distance_squared_lower_bounds(&self, p: &PointBracket) -> [f32; N] {
+        let mut d2 = [0.0f32; N];
         for axis in 0..3 {
             let (lo, hi) = (p.lo[axis], p.hi[axis]);
-            for lane in 0..4 {
+            for lane in 0..N {
                 let below = self.min[axis][lane] - hi;
                 let above = lo - self.max[axis][lane];
                 // `if` rather than `f32::max`: the same result for these operands (no NaN
                 // for finite boxes) and one `maxps` instead of a NaN-aware sequence.
                 let gap = if below > above { below } else { above };
-                // Written so that a NaN gap stays NaN (the empty slots of [`Box4::NONE`]).
+                // Written so that a NaN gap stays NaN (the empty slots of [`Boxes::NONE`]).
                 let gap = if gap < 0.0 { 0.0 } else { gap };
                 d2[lane] += gap * gap;
             }

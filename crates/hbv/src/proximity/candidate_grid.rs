@@ -65,7 +65,7 @@ impl Default for CandidateGridConfig {
 
 /// One cell: `count > 0` triangles listed from `first` in the grid's candidate array, or
 /// (`count == 0`) the seed triangle `first` of a tree search. Triangles are the search tree's
-/// local ids (`4 × packet + lane`).
+/// local ids (`LANES × packet + lane`, module `triangle_packet`).
 #[derive(Clone, Copy, Debug)]
 struct Cell {
     first: u32,
@@ -233,7 +233,7 @@ impl CandidateGrid {
     /// nor any later one (their `l` are larger) is as near as the best. (The third `δ` and the
     /// relative `10⁻¹²` cover the rounding of `g`, `g²` and `|p - c|`, each below `10⁻¹⁵` of the
     /// grid's coordinates.)
-    #[inline]
+    #[inline(always)]
     pub fn answer(&self, p: DVec3) -> CellAnswer {
         let q = (p - self.origin) * (1.0 / self.size);
         let mut index = 0;

@@ -3,7 +3,7 @@
 //!
 //! | query | file | how |
 //! | --- | --- | --- |
-//! | nearest surface point | [`closest_point`] | branch and bound over a 4-child BVH (`search_tree`): conservative f32 bounds prune nodes (point–box, `box_bound`; near the leaves in a frame facing the surface, `node_frame`) and single triangles (support function, `triangle_packet`), nearest child first; [`point_triangle`] decides in f64 |
+//! | nearest surface point | [`closest_point`] | branch and bound over an 8-child BVH (`search_tree`): conservative f32 bounds prune nodes (point–box, `box_bound`; near the leaves in a frame facing the surface, `node_frame`) and single triangles (their enclosing slab, cylinder and edge half-spaces: `triangle_enclosure`, `triangle_packet`), nearest child first; [`point_triangle`] decides in f64 |
 //! | inside a closed mesh | [`inside`] | majority of three ray parity counts, each from one all-hits traversal |
 
 mod box_bound;
@@ -13,11 +13,12 @@ pub mod inside;
 mod node_frame;
 pub mod point_triangle;
 mod search_tree;
+mod triangle_enclosure;
 mod triangle_packet;
 
 pub use candidate_grid::CandidateGridConfig;
 pub use closest_point::{
-    closest_point_brute_force, ClosestPoint, ClosestPointColumns, ClosestPointTree,
+    closest_point_brute_force, ClosestPoint, ClosestPointColumns, ClosestPointTree, SearchTally,
 };
 pub use inside::contains;
 pub use point_triangle::{closest_point_on_triangle, TrianglePoint};

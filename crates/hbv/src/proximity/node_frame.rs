@@ -28,6 +28,9 @@ pub(super) const FRAME_SHRINK: f32 = 1.0 - 1.0 / 65_536.0;
 #[derive(Clone, Copy, Debug)]
 pub(super) struct NodeFrame {
     rows: [[f32; 3]; 3],
+    /// The rows side by side: `columns[i][j]` is `rows[j][i]` (lane 3 is 0), so that the three
+    /// coordinates of a point are computed at once, four lanes wide.
+    columns: [[f32; 4]; 3],
 }
 
 impl NodeFrame {
@@ -38,8 +41,10 @@ impl NodeFrame {
         let helper = if n.x.abs() < 0.6 { DVec3::X } else { DVec3::Y };
         let t1 = n.cross(helper).try_normalize()?;
         let t2 = n.cross(t1);
+        let rows = [t1, t2, n].map(|r| r.as_vec3().to_array());
         let frame = NodeFrame {
-            rows: [t1, t2, n].map(|r| r.as_vec3().to_array()),
+            rows,
+            columns: [0, 1, 2].map(|i| [rows[0][i], rows[1][i], rows[2][i], 0.0]),
         };
         let r = frame.rows.map(|row| Vec3::from(row).as_dvec3());
         for i in 0..3 {
@@ -80,29 +85,34 @@ impl NodeFrame {
     /// is not finite (points near the f32 limit) becomes `(-∞, +∞)`: no bound.
     #[inline(always)]
     pub fn bracket(&self, p: &PointBracket) -> PointBracket {
-        let mut rotated = PointBracket {
-            lo: [0.0; 3],
-            hi: [0.0; 3],
-        };
-        for (j, r) in self.rows.iter().enumerate() {
-            let mut value = 0.0f32;
-            let mut magnitude = 0.0f32;
-            let mut spread = 0.0f32;
-            for ((&ri, &lo), &hi) in r.iter().zip(&p.lo).zip(&p.hi) {
-                let term = ri * lo;
-                value += term;
-                magnitude += term.abs();
-                spread += ri.abs() * (hi - lo);
+        // Lane `j` is row `j`: the same operations in the same order as row by row.
+        let mut value = [0.0f32; 4];
+        let mut magnitude = [0.0f32; 4];
+        let mut spread = [0.0f32; 4];
+        for (i, column) in self.columns.iter().enumerate() {
+            let (lo, hi) = (p.lo[i], p.hi[i]);
+            for j in 0..4 {
+                let term = column[j] * lo;
+                value[j] += term;
+                magnitude[j] += term.abs();
+                spread[j] += column[j].abs() * (hi - lo);
             }
-            let margin = (magnitude + value.abs()) * (1.0 / 1_048_576.0)
-                + spread * (1.0 + 1.0 / 1_048_576.0)
-                + f32::MIN_POSITIVE;
-            let (lo, hi) = (value - margin, value + margin);
-            let finite = lo > f32::NEG_INFINITY && hi < f32::INFINITY;
-            rotated.lo[j] = if finite { lo } else { f32::NEG_INFINITY };
-            rotated.hi[j] = if finite { hi } else { f32::INFINITY };
         }
-        rotated
+        let mut lo4 = [0.0f32; 4];
+        let mut hi4 = [0.0f32; 4];
+        for j in 0..4 {
+            let margin = (magnitude[j] + value[j].abs()) * (1.0 / 1_048_576.0)
+                + spread[j] * (1.0 + 1.0 / 1_048_576.0)
+                + f32::MIN_POSITIVE;
+            let (lo, hi) = (value[j] - margin, value[j] + margin);
+            let finite = lo > f32::NEG_INFINITY && hi < f32::INFINITY;
+            lo4[j] = if finite { lo } else { f32::NEG_INFINITY };
+            hi4[j] = if finite { hi } else { f32::INFINITY };
+        }
+        PointBracket {
+            lo: [lo4[0], lo4[1], lo4[2]],
+            hi: [hi4[0], hi4[1], hi4[2]],
+        }
     }
 }
 
