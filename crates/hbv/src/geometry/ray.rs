@@ -105,24 +105,7 @@ impl PreparedRay {
         let c = d.to_array();
         // The six quotients, each one correctly rounded IEEE division: two 4-wide divisions.
         let [sx, sy, sz, _] = divide4([c[kx], c[ky], 1.0, 1.0], [c[kz], c[kz], c[kz], 1.0]);
-        let [ix, iy, iz, _] = divide4([1.0; 4], [c[0], c[1], c[2], 1.0]);
-        // A component so small (below 2^-128) that `1/d` overflows: the slab distances of that
-        // axis would come out infinite although the ray crosses its planes at finite `t`. NaN
-        // instead makes every distance of the axis NaN, which the slab tests drop: the axis
-        // does not constrain the interval (conservative; such rays are rare). An exact zero
-        // keeps its infinity: the ray is parallel to the planes, and the infinities are right.
-        let unbounded = |d: f32, inv: f32| {
-            if d != 0.0 && inv.is_infinite() {
-                f32::NAN
-            } else {
-                inv
-            }
-        };
-        let (ix, iy, iz) = (
-            unbounded(c[0], ix),
-            unbounded(c[1], iy),
-            unbounded(c[2], iz),
-        );
+        let [ix, iy, iz, _] = invert4([c[0], c[1], c[2], 1.0]);
         let shear = Vec3::new(sx, sy, sz);
         Self {
             origin: ray.origin,
@@ -223,6 +206,49 @@ impl PreparedRay {
     #[inline]
     pub fn box_tmax(&self) -> f32 {
         self.tmax + self.box_margin
+    }
+}
+
+/// `1 / d` lane by lane (one SSE division on x86_64), but NaN where `d` is not zero and `1 / d`
+/// overflows (below 2^-128): the slab distances of such an axis would come out infinite
+/// although the ray crosses its planes at finite `t`, whereas NaN distances are dropped by
+/// every slab test, which leaves the axis unconstrained (conservative; such rays are rare). An
+/// exact zero keeps its infinity: the ray is parallel to the planes, and the infinities are
+/// right.
+#[inline(always)]
+fn invert4(d: [f32; 4]) -> [f32; 4] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::*;
+        let mut q = [0.0f32; 4];
+        // SAFETY: SSE is part of the x86_64 baseline; the load and the store touch 4 floats of
+        // 4-float arrays.
+        unsafe {
+            let d = _mm_loadu_ps(d.as_ptr());
+            let inv = _mm_div_ps(_mm_set1_ps(1.0), d);
+            let magnitude = _mm_andnot_ps(_mm_set1_ps(-0.0), inv);
+            let overflow = _mm_and_ps(
+                _mm_cmpeq_ps(magnitude, _mm_set1_ps(f32::INFINITY)),
+                _mm_cmpneq_ps(d, _mm_setzero_ps()),
+            );
+            let inv = _mm_or_ps(
+                _mm_andnot_ps(overflow, inv),
+                _mm_and_ps(overflow, _mm_set1_ps(f32::NAN)),
+            );
+            _mm_storeu_ps(q.as_mut_ptr(), inv);
+        }
+        q
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        d.map(|d| {
+            let inv = 1.0 / d;
+            if d != 0.0 && inv.is_infinite() {
+                f32::NAN
+            } else {
+                inv
+            }
+        })
     }
 }
 
