@@ -7,22 +7,32 @@
 
 use hbv::bvh::build::{BinnedSahBuilder, Builder};
 use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
+use hbv::bvh::BuildTree;
 use hbv::geometry::Ray;
 use hbv::glam::Vec3;
 use hbv::mesh::procedural::torus;
+use hbv::mesh::TriangleMesh;
 use hbv::{Accelerator, BruteForce};
+
+/// Every layout over the same tree, by name.
+fn every_layout(
+    tree: &BuildTree,
+    mesh: &TriangleMesh,
+) -> Vec<(&'static str, Box<dyn Accelerator>)> {
+    vec![
+        ("recursive", Box::new(RecursiveLayout::new(tree, mesh))),
+        ("skip", Box::new(SkipLayout::new(tree, mesh))),
+        ("ordered", Box::new(OrderedLayout::new(tree, mesh))),
+        ("wide4", Box::new(Wide4Layout::new(tree, mesh))),
+        ("wide8", Box::new(Wide8Layout::new(tree, mesh))),
+    ]
+}
 
 #[test]
 fn segments_ending_at_a_near_hit_find_it_in_every_layout() {
     let mesh = torus(Vec3::ZERO, 2e-4, 7e-5, 5, 6);
     let tree = BinnedSahBuilder::default().build(&mesh);
-    let layouts: Vec<(&str, Box<dyn Accelerator>)> = vec![
-        ("recursive", Box::new(RecursiveLayout::new(&tree, &mesh))),
-        ("skip", Box::new(SkipLayout::new(&tree, &mesh))),
-        ("ordered", Box::new(OrderedLayout::new(&tree, &mesh))),
-        ("wide4", Box::new(Wide4Layout::new(&tree, &mesh))),
-        ("wide8", Box::new(Wide8Layout::new(&tree, &mesh))),
-    ];
+    let layouts = every_layout(&tree, &mesh);
     let brute = BruteForce::new(&mesh);
     let origin = Vec3::new(-2.4261884e-5, -0.00013546088, 6.029243e-5);
     let mut checked = 0;
@@ -50,7 +60,6 @@ fn segments_ending_at_a_near_hit_find_it_in_every_layout() {
 /// one parallel to the planes (and outside the slab), or it loses the hit.
 #[test]
 fn tiny_direction_components_whose_inverse_overflows_lose_no_hit() {
-    use hbv::mesh::TriangleMesh;
     // A square in the plane x = 0.5 over y in [0, 1], z in [0, 1]: the ray starts just below
     // y = 0 and rises by a subnormal slope, crossing y = 0 at x = 0 and meeting the square.
     let mesh = TriangleMesh::new(
@@ -68,13 +77,7 @@ fn tiny_direction_components_whose_inverse_overflows_lose_no_hit() {
     )
     .unwrap();
     let tree = BinnedSahBuilder::default().build(&mesh);
-    let layouts: Vec<(&str, Box<dyn Accelerator>)> = vec![
-        ("recursive", Box::new(RecursiveLayout::new(&tree, &mesh))),
-        ("skip", Box::new(SkipLayout::new(&tree, &mesh))),
-        ("ordered", Box::new(OrderedLayout::new(&tree, &mesh))),
-        ("wide4", Box::new(Wide4Layout::new(&tree, &mesh))),
-        ("wide8", Box::new(Wide8Layout::new(&tree, &mesh))),
-    ];
+    let layouts = every_layout(&tree, &mesh);
     let brute = BruteForce::new(&mesh);
     let mut checked = 0;
     for dy in [1e-40f32, 1e-44, 3e-39] {

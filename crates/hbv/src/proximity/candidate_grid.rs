@@ -31,6 +31,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::directed_rounding::f32_below;
 use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
 
 /// Settings of the candidate grid that `closest_point` queries use on meshes of a few large
@@ -361,14 +362,4 @@ fn cell_list(
         }
         _ => Err(seed),
     })
-}
-
-/// The largest f32 not above `x` (`x ≥ 0`).
-fn f32_below(x: f64) -> f32 {
-    let near = x as f32;
-    if near as f64 > x {
-        near.next_down()
-    } else {
-        near
-    }
 }

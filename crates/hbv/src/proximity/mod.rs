@@ -9,6 +9,7 @@
 mod box_bound;
 mod candidate_grid;
 pub mod closest_point;
+mod directed_rounding;
 pub mod inside;
 mod node_frame;
 pub mod point_triangle;

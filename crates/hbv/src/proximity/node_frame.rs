@@ -19,6 +19,7 @@
 use glam::{DVec3, Vec3};
 
 use super::box_bound::PointBracket;
+use super::directed_rounding::{f32_above, f32_below};
 
 /// `1 - 2⁻¹⁶`: what a bound computed in a [`NodeFrame`] is multiplied by (it covers
 /// `σ_max² ≤ 1 + 3·2⁻²⁰` and the f32 rounding of the bound).
@@ -113,26 +114,6 @@ impl NodeFrame {
             lo: [lo4[0], lo4[1], lo4[2]],
             hi: [hi4[0], hi4[1], hi4[2]],
         }
-    }
-}
-
-/// The largest f32 not above `x`.
-fn f32_below(x: f64) -> f32 {
-    let near = x as f32;
-    if (near as f64) > x {
-        near.next_down()
-    } else {
-        near
-    }
-}
-
-/// The least f32 not below `x`.
-fn f32_above(x: f64) -> f32 {
-    let near = x as f32;
-    if (near as f64) < x {
-        near.next_up()
-    } else {
-        near
     }
 }
 

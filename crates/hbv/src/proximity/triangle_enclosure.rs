@@ -28,6 +28,8 @@
 
 use glam::{DVec3, Vec3};
 
+use super::directed_rounding::f32_above;
+
 /// The enclosure of one triangle (module notes), in f32.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct TriangleEnclosure {
@@ -128,16 +130,6 @@ fn smallest_circle_centre(a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
     let n = ab.cross(ac);
     a + (n.cross(ab) * ac.length_squared() + ac.cross(n) * ab.length_squared())
         / (2.0 * n.length_squared())
-}
-
-/// The least f32 not below `x`.
-fn f32_above(x: f64) -> f32 {
-    let near = x as f32;
-    if (near as f64) < x {
-        near.next_up()
-    } else {
-        near
-    }
 }
 
 #[cfg(test)]
