@@ -91,6 +91,22 @@ impl PreparedRay {
     /// constants that make no promise (they never produce a finite hit, but that is not a contract).
     #[inline]
     pub fn new(ray: &Ray) -> Self {
+        Self::with_inverse(ray, Self::inverse_of(ray.direction))
+    }
+
+    /// `1/d` per axis, as [`PreparedRay::inv_direction`] holds it (NaN where a nonzero `d`
+    /// overflows).
+    #[inline]
+    pub(crate) fn inverse_of(direction: Vec3) -> Vec3 {
+        let c = direction.to_array();
+        let [ix, iy, iz, _] = invert4([c[0], c[1], c[2], 1.0]);
+        Vec3::new(ix, iy, iz)
+    }
+
+    /// [`PreparedRay::new`] given the ray's [`PreparedRay::inverse_of`] its direction (a
+    /// traversal that tested the root box with it first).
+    #[inline]
+    pub(crate) fn with_inverse(ray: &Ray, inv_direction: Vec3) -> Self {
         let d = ray.direction;
         let a = d.abs();
         let kz = if a.x >= a.y && a.x >= a.z {
@@ -105,12 +121,11 @@ impl PreparedRay {
         let c = d.to_array();
         // The six quotients, each one correctly rounded IEEE division: two 4-wide divisions.
         let [sx, sy, sz, _] = divide4([c[kx], c[ky], 1.0, 1.0], [c[kz], c[kz], c[kz], 1.0]);
-        let [ix, iy, iz, _] = invert4([c[0], c[1], c[2], 1.0]);
         let shear = Vec3::new(sx, sy, sz);
         Self {
             origin: ray.origin,
             direction: d,
-            inv_direction: Vec3::new(ix, iy, iz),
+            inv_direction,
             negative: [
                 d.x.is_sign_negative(),
                 d.y.is_sign_negative(),
@@ -179,21 +194,31 @@ impl PreparedRay {
     /// [`PreparedRay::bound_errors_within`] for a scene of [`PreparedRay::scene_size`] `scene_size`.
     #[inline]
     pub fn bound_errors_within_size(&mut self, scene_size: f32) {
-        let origin_size = self.origin.abs().max_element();
-        // `shear.z` is 1 / d_kz.
-        let x = (origin_size + scene_size) * self.shear.z.abs();
+        (self.box_margin, self.slab_margin) =
+            Self::margins(self.origin, self.direction, scene_size);
+    }
+
+    /// The box margin `m` and the slab margin `s` of [`PreparedRay::bound_errors_within`], from
+    /// the ray's origin and direction alone (so that a traversal can test the root box before
+    /// preparing the rest of the ray).
+    #[inline]
+    pub(crate) fn margins(origin: Vec3, direction: Vec3, scene_size: f32) -> (f32, f32) {
+        let origin_size = origin.abs().max_element();
+        // `1 / |d_kz|`: the same bits as `|shear.z|`.
+        let x = (origin_size + scene_size) * (1.0 / direction.abs().max_element());
         let margin = (Self::BOX_SLACK + Self::BOX_SLACK / 4.0) * x;
         // An empty scene (infinite bounds) or overflow: no margin is needed, or none would help.
-        self.box_margin = if margin.is_finite() {
+        let box_margin = if margin.is_finite() {
             margin.max(f32::MIN_POSITIVE)
         } else {
             0.0
         };
-        self.slab_margin = if x.is_finite() {
+        let slab_margin = if x.is_finite() {
             (Self::BOX_SLACK / 2.0 * x).max(f32::MIN_POSITIVE)
         } else {
             f32::INFINITY
         };
+        (box_margin, slab_margin)
     }
 
     /// The lower end of the interval the box tests use.

@@ -34,15 +34,33 @@ pub(crate) struct BoxRay {
 impl BoxRay {
     #[inline]
     pub fn new(ray: &PreparedRay) -> Self {
-        let near_side = ray.negative.map(u8::from);
+        Self::from_parts(
+            ray.origin,
+            ray.direction,
+            ray.inv_direction,
+            ray.slab_margin,
+        )
+    }
+
+    /// [`BoxRay::new`] from the parts of a [`PreparedRay`] it uses: origin, direction, inverse
+    /// direction ([`PreparedRay::inverse_of`]) and slab margin ([`PreparedRay::margins`]).
+    #[inline]
+    pub fn from_parts(
+        origin: Vec3,
+        direction: Vec3,
+        inv_direction: Vec3,
+        slab_margin: f32,
+    ) -> Self {
+        let near_side =
+            [direction.x, direction.y, direction.z].map(|d| u8::from(d.is_sign_negative()));
         let row_offset = |side: u8, axis: u32| (3 * u32::from(side) + axis) * 32;
         Self {
-            origin: ray.origin.to_array(),
-            inv_direction: ray.inv_direction.to_array(),
+            origin: origin.to_array(),
+            inv_direction: inv_direction.to_array(),
             near_side,
             near_offset: [0, 1, 2].map(|axis| row_offset(near_side[axis as usize], axis)),
             far_offset: [0, 1, 2].map(|axis| row_offset(1 - near_side[axis as usize], axis)),
-            slab_margin: ray.slab_margin,
+            slab_margin,
         }
     }
 

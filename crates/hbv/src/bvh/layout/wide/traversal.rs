@@ -96,13 +96,25 @@ impl Traversal {
         counter: &mut C,
     ) -> Option<(PreparedRay, BoxRay, u32)> {
         let (root, root_bounds, scene_size) = layout.root?;
-        let mut prepared = PreparedRay::new(ray);
-        prepared.bound_errors_within_size(scene_size);
-        let box_ray = BoxRay::new(&prepared);
+        // The root box first, from what its test needs: about two thirds of a camera's rays
+        // miss it, and skip the rest of the preparation.
+        let inv = PreparedRay::inverse_of(ray.direction);
+        let (box_margin, slab_margin) = PreparedRay::margins(ray.origin, ray.direction, scene_size);
+        let box_ray = BoxRay::from_parts(ray.origin, ray.direction, inv, slab_margin);
         counter.boxes_tested(1);
         let corners = [root_bounds.min, root_bounds.max];
-        let (met, _) = box_scalar(corners, &box_ray, prepared.box_tmin(), prepared.box_tmax());
-        met.then_some((prepared, box_ray, root))
+        let (met, _) = box_scalar(
+            corners,
+            &box_ray,
+            ray.tmin - box_margin,
+            ray.tmax + box_margin,
+        );
+        if !met {
+            return None;
+        }
+        let mut prepared = PreparedRay::with_inverse(ray, inv);
+        (prepared.box_margin, prepared.slab_margin) = (box_margin, slab_margin);
+        Some((prepared, box_ray, root))
     }
 
     /// Visits the current node or leaf and chooses what comes next: [`Traversal::leaf_step`] or
