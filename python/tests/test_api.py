@@ -111,13 +111,17 @@ def test_intervals_scalar_and_per_ray(sphere):
 def test_threads_do_not_change_answers(sphere):
     mesh, _, _ = sphere
     bvh = hbv.BVH(mesh)
-    o, d = random_rays(3000)
-    want = bvh.intersect(o, d)
-    for threads in (1, 2, 3):
-        got = bvh.intersect(o, d, threads=threads)
-        for k in want:
-            np.testing.assert_array_equal(got[k], want[k])
-    np.testing.assert_array_equal(bvh.count(o, d, threads=1), bvh.count(o, d))
+    # Batches of at most 2,048 rays stay on the calling thread; larger ones go to the pool.
+    for n in (300, 5000):
+        o, d = random_rays(n)
+        want = bvh.intersect(o, d, threads=1)
+        for threads in (None, 2, 3):
+            got = bvh.intersect(o, d, threads=threads)
+            for k in want:
+                np.testing.assert_array_equal(got[k], want[k])
+            np.testing.assert_array_equal(
+                bvh.occluded(o, d, threads=threads), bvh.occluded(o, d, threads=1))
+        np.testing.assert_array_equal(bvh.count(o, d, threads=1), bvh.count(o, d))
 
 
 def test_every_builder_and_layout_gives_the_same_answers(triangle_soup):
