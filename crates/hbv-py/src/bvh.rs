@@ -303,7 +303,7 @@ impl PyBvh {
         let (mut point, mut distance) = (vec![[0.0f64; 3]; n], vec![0.0f64; n]);
         let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0f64; n], vec![0.0f64; n]);
         py.detach(|| {
-            run_on_threads(threads, || {
+            let mut answer = || {
                 let columns = ClosestPointColumns {
                     point: &mut point,
                     distance: &mut distance,
@@ -312,7 +312,15 @@ impl PyBvh {
                     v: &mut v,
                 };
                 self.closest_tree().closest_points_into(&points, columns)
-            })
+            };
+            // One run of points is answered on the calling thread whatever `threads` says
+            // (`closest_points_into`): no pool to hand it to.
+            if n <= ClosestPointTree::RUN && threads != Some(0) {
+                answer();
+                Ok(())
+            } else {
+                run_on_threads(threads, answer)
+            }
         })?;
         let point = point.into_flattened();
         let out = PyDict::new(py);

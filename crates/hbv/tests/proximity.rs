@@ -186,6 +186,47 @@ fn assert_closest_points_agree_with(
                 p
             );
         }
+        // A batch longer than one run (answered in Morton order, in parallel, rather than on
+        // the calling thread in the points' order): the points repeated, the same rows.
+        if !points.is_empty() {
+            let long: Vec<_> = as_f64
+                .iter()
+                .cycle()
+                .take(ClosestPointTree::RUN + 1 + n)
+                .copied()
+                .collect();
+            let m = long.len();
+            let (mut lpoint, mut ldistance) = (vec![[0.0; 3]; m], vec![0.0; m]);
+            let (mut lprim, mut lu, mut lv) = (vec![0i64; m], vec![0.0; m], vec![0.0; m]);
+            search.closest_points_into(
+                &long,
+                ClosestPointColumns {
+                    point: &mut lpoint,
+                    distance: &mut ldistance,
+                    prim: &mut lprim,
+                    u: &mut lu,
+                    v: &mut lv,
+                },
+            );
+            for j in 0..m {
+                let i = j % n;
+                prop_assert_eq!(
+                    (
+                        lpoint[j].map(f64::to_bits),
+                        ldistance[j].to_bits(),
+                        lprim[j]
+                    ),
+                    (point[i].map(f64::to_bits), distance[i].to_bits(), prim[i]),
+                    "{} long batch: row {}",
+                    name,
+                    j
+                );
+                prop_assert_eq!(
+                    (lu[j].to_bits(), lv[j].to_bits()),
+                    (u[i].to_bits(), v[i].to_bits())
+                );
+            }
+        }
     }
     Ok(())
 }
