@@ -21,7 +21,7 @@ use crate::build_options::BuildOptions;
 use crate::bvh_file::{describe, save};
 use crate::mesh::PyMesh;
 use crate::ray_queries::{any_hits, closest_hits, every_hit, hit_counts, inside, RayArgs};
-use crate::thread_pool::run_on_threads;
+use crate::thread_pool::run_here_or_on_threads;
 
 /// A bounding volume hierarchy over a mesh, answering ray and point queries.
 ///
@@ -303,7 +303,7 @@ impl PyBvh {
         let (mut point, mut distance) = (vec![[0.0f64; 3]; n], vec![0.0f64; n]);
         let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0f64; n], vec![0.0f64; n]);
         py.detach(|| {
-            let mut answer = || {
+            let answer = || {
                 let columns = ClosestPointColumns {
                     point: &mut point,
                     distance: &mut distance,
@@ -315,12 +315,7 @@ impl PyBvh {
             };
             // One run of points is answered on the calling thread whatever `threads` says
             // (`closest_points_into`): no pool to hand it to.
-            if n <= ClosestPointTree::RUN && threads != Some(0) {
-                answer();
-                Ok(())
-            } else {
-                run_on_threads(threads, answer)
-            }
+            run_here_or_on_threads(n <= ClosestPointTree::RUN, threads, answer)
         })?;
         let point = point.into_flattened();
         let out = PyDict::new(py);

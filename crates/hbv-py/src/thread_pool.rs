@@ -19,18 +19,40 @@ pub const GRAIN: usize = 256;
 /// threads helped such calls too, but cost 5-15% on large ones: not kept.)
 pub const SERIAL_ROWS: usize = 8 * GRAIN;
 
+/// `threads=0`: an error, whatever the batch (checked before any work).
+fn check(threads: Option<usize>) -> PyResult<()> {
+    if threads == Some(0) {
+        return Err(PyValueError::new_err(
+            "threads: expected a positive number of threads, or None for all cores",
+        ));
+    }
+    Ok(())
+}
+
 /// Runs `work` on all cores (`threads` = None) or on a pool of exactly `threads` threads.
 pub fn run_on_threads<T: Send>(
     threads: Option<usize>,
     work: impl FnOnce() -> T + Send,
 ) -> PyResult<T> {
+    check(threads)?;
     match threads {
-        None => Ok(work()),
-        Some(0) => Err(PyValueError::new_err(
-            "threads: expected a positive number of threads, or None for all cores",
-        )),
-        Some(n) => Ok(pool_of(n)?.install(work)),
+        Some(n) if n > 0 => Ok(pool_of(n)?.install(work)),
+        _ => Ok(work()),
     }
+}
+
+/// [`run_on_threads`], but on the calling thread when `here` (a batch whose work does not use
+/// the pool, and should not wait for it to wake).
+pub fn run_here_or_on_threads<T: Send>(
+    here: bool,
+    threads: Option<usize>,
+    work: impl FnOnce() -> T + Send,
+) -> PyResult<T> {
+    check(threads)?;
+    if here {
+        return Ok(work());
+    }
+    run_on_threads(threads, work)
 }
 
 /// The pool of `n` threads, started on first use and kept: a query with `threads=n` would
@@ -87,16 +109,14 @@ pub fn fill_rows<R: Rows>(
     rows: R,
     fill: impl Fn(usize, R) + Sync + Send,
 ) -> PyResult<()> {
-    if threads == Some(0) {
-        return Err(PyValueError::new_err(
-            "threads: expected a positive number of threads, or None for all cores",
-        ));
-    }
-    if threads == Some(1) || rows.rows() <= SERIAL_ROWS {
-        fill(0, rows);
-        return Ok(());
-    }
-    run_on_threads(threads, || split_and_fill(0, rows, &fill))
+    let here = threads == Some(1) || rows.rows() <= SERIAL_ROWS;
+    run_here_or_on_threads(here, threads, || {
+        if here {
+            fill(0, rows)
+        } else {
+            split_and_fill(0, rows, &fill)
+        }
+    })
 }
 
 fn split_and_fill<R: Rows>(first: usize, rows: R, fill: &(impl Fn(usize, R) + Sync)) {

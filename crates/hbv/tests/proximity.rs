@@ -147,39 +147,17 @@ fn assert_closest_points_agree_with(
             let want = closest_point_brute_force(mesh, as_f64[i]);
             prop_assert_eq!(want, got, "{} batch: point {} {:?}", name, i, points[i]);
         }
-        // The column form: the same answers, NaN, +inf, -1, 0, 0 for none.
-        let n = points.len();
-        let (mut point, mut distance) = (vec![[0.0; 3]; n], vec![0.0; n]);
-        let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0; n], vec![0.0; n]);
-        search.closest_points_into(
-            &as_f64,
-            ClosestPointColumns {
-                point: &mut point,
-                distance: &mut distance,
-                prim: &mut prim,
-                u: &mut u,
-                v: &mut v,
-            },
-        );
+        // The column form: the same answers, NaN, +inf, -1, 0, 0 for none (compared as bits:
+        // NaN rows must match too).
+        let rows = column_rows(&search, &as_f64);
         for (i, &p) in as_f64.iter().enumerate() {
-            let row = (point[i], distance[i], prim[i], u[i], v[i]);
             let want = match closest_point_brute_force(mesh, p) {
                 Some(c) => (c.point.to_array(), c.distance, c.prim as i64, c.u, c.v),
                 None => ([f64::NAN; 3], f64::INFINITY, -1, 0.0, 0.0),
             };
-            // Compared as bits: NaN rows must match too.
-            let bits = |(q, d, k, u, v): ([f64; 3], f64, i64, f64, f64)| {
-                (
-                    q.map(f64::to_bits),
-                    d.to_bits(),
-                    k,
-                    u.to_bits(),
-                    v.to_bits(),
-                )
-            };
             prop_assert_eq!(
-                bits(want),
-                bits(row),
+                row_bits(want),
+                rows[i],
                 "{} columns: point {} {:?}",
                 name,
                 i,
@@ -189,46 +167,52 @@ fn assert_closest_points_agree_with(
         // A batch longer than one run (answered in Morton order, in parallel, rather than on
         // the calling thread in the points' order): the points repeated, the same rows.
         if !points.is_empty() {
+            let n = points.len();
             let long: Vec<_> = as_f64
                 .iter()
                 .cycle()
                 .take(ClosestPointTree::RUN + 1 + n)
                 .copied()
                 .collect();
-            let m = long.len();
-            let (mut lpoint, mut ldistance) = (vec![[0.0; 3]; m], vec![0.0; m]);
-            let (mut lprim, mut lu, mut lv) = (vec![0i64; m], vec![0.0; m], vec![0.0; m]);
-            search.closest_points_into(
-                &long,
-                ClosestPointColumns {
-                    point: &mut lpoint,
-                    distance: &mut ldistance,
-                    prim: &mut lprim,
-                    u: &mut lu,
-                    v: &mut lv,
-                },
-            );
-            for j in 0..m {
-                let i = j % n;
-                prop_assert_eq!(
-                    (
-                        lpoint[j].map(f64::to_bits),
-                        ldistance[j].to_bits(),
-                        lprim[j]
-                    ),
-                    (point[i].map(f64::to_bits), distance[i].to_bits(), prim[i]),
-                    "{} long batch: row {}",
-                    name,
-                    j
-                );
-                prop_assert_eq!(
-                    (lu[j].to_bits(), lv[j].to_bits()),
-                    (u[i].to_bits(), v[i].to_bits())
-                );
+            for (j, row) in column_rows(&search, &long).into_iter().enumerate() {
+                prop_assert_eq!(row, rows[j % n], "{} long batch: row {}", name, j);
             }
         }
     }
     Ok(())
+}
+
+/// A row of `closest_points_into`'s columns (point, distance, prim, u, v), floats as bits.
+type RowBits = ([u64; 3], u64, i64, u64, u64);
+
+fn row_bits((q, d, k, u, v): ([f64; 3], f64, i64, f64, f64)) -> RowBits {
+    (
+        q.map(f64::to_bits),
+        d.to_bits(),
+        k,
+        u.to_bits(),
+        v.to_bits(),
+    )
+}
+
+/// `search.closest_points_into(points)`, row by row.
+fn column_rows(search: &ClosestPointTree, points: &[DVec3]) -> Vec<RowBits> {
+    let n = points.len();
+    let (mut point, mut distance) = (vec![[0.0; 3]; n], vec![0.0; n]);
+    let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0; n], vec![0.0; n]);
+    search.closest_points_into(
+        points,
+        ClosestPointColumns {
+            point: &mut point,
+            distance: &mut distance,
+            prim: &mut prim,
+            u: &mut u,
+            v: &mut v,
+        },
+    );
+    (0..n)
+        .map(|i| row_bits((point[i], distance[i], prim[i], u[i], v[i])))
+        .collect()
 }
 
 proptest! {
