@@ -111,7 +111,8 @@ def test_intervals_scalar_and_per_ray(sphere):
 def test_threads_do_not_change_answers(sphere):
     mesh, _, _ = sphere
     bvh = hbv.BVH(mesh)
-    # Batches of at most 2,048 rays stay on the calling thread; larger ones go to the pool.
+    # Batches of at most 2,048 rays stay on the calling thread; larger ones are cut into runs
+    # that the calling thread and the pool's threads share (5,000: a shorter last run).
     for n in (300, 5000):
         o, d = random_rays(n)
         want = bvh.intersect(o, d, threads=1)
