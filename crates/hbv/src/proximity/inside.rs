@@ -15,7 +15,7 @@ const VOTE_DIRECTIONS: [Vec3; 3] = [
 ];
 
 /// Whether `point` lies inside the closed mesh that `accel` traces: the majority of three parity
-/// votes. Each vote casts a ray from the point (over `[0, +inf]`) and counts every triangle it
+/// votes (the third cast only when the first two disagree). Each vote casts a ray from the point (over `[0, +inf]`) and counts every triangle it
 /// crosses in one all-hits traversal (Jordan's theorem: odd means inside).
 ///
 /// Why a vote of rays rather than one ray or a winding number: one ray is wrong when it passes
@@ -31,12 +31,16 @@ pub fn contains<A: AllHits + ?Sized>(accel: &A, point: Vec3) -> bool {
         return false;
     }
     let mut hits = Vec::new();
-    let inside_votes = VOTE_DIRECTIONS
-        .iter()
-        .filter(|&&d| {
-            accel.all_hits(&Ray::new(point, d), &mut hits);
-            hits.len() % 2 == 1
-        })
-        .count();
-    inside_votes >= 2
+    let mut votes_inside = |direction: Vec3| {
+        accel.all_hits(&Ray::new(point, direction), &mut hits);
+        hits.len() % 2 == 1
+    };
+    let [first, second, third] = VOTE_DIRECTIONS;
+    let (first, second) = (votes_inside(first), votes_inside(second));
+    // Two agreeing votes are already a majority: the third ray is cast only to break a tie.
+    if first == second {
+        first
+    } else {
+        votes_inside(third)
+    }
 }
