@@ -11,7 +11,13 @@ Queries and contenders:
   100,000 triangles: it takes minutes on the others);
 - closest hit, all threads: `hbv.BVH.intersect()` and Open3D `cast_rays()` (every core);
 - nearest surface point: `hbv.BVH.closest_point` and Open3D `compute_closest_points`, one thread
-  and all threads.
+  and all threads;
+- the queries trimesh users call (`--other-rays` of the random rays, the nearest-point points):
+  every hit along each ray, `hbv.BVH.intersect_all` against trimesh's Embree intersector's
+  `intersects_location(multiple_hits=True)` (which re-casts each ray past every hit); hits per
+  ray, `hbv.BVH.count` against `intersects_id(multiple_hits=True)` counted per ray; inside
+  tests, `hbv.BVH.contains` against `trimesh.Trimesh.contains` (ray parity with Embree); hbv on
+  one thread and on all, trimesh on one (it has no threads).
 
 Rays (tmin = 0, tmax = inf for all, since Open3D has no per-ray interval), made from the mesh's
 box (centre c, diagonal D) with a fixed seed:
@@ -71,6 +77,8 @@ def parse_args():
     p.add_argument("--json", type=pathlib.Path, help="also write every figure to this file")
     p.add_argument("--closest-only", action="store_true",
                    help="only the nearest-surface-point comparison (no ray sets)")
+    p.add_argument("--other-rays", type=int, default=65_536,
+                   help="random rays for intersect_all and count against trimesh (default 65,536; 0: none)")
     return p.parse_args()
 
 
@@ -164,7 +172,7 @@ def compare_mesh(path, args):
     tm_embree, tm_triangle = TrimeshEmbree(tm), TrimeshTriangle(tm)
 
     cores = os.cpu_count()
-    rows = []
+    rows, others = [], []
     sets = {} if args.closest_only else ray_sets(v, args.rays, args.seed)
     for set_name, (o, d) in sets.items():
         o3d_rays = o3d.core.Tensor(np.hstack([o, d]))
@@ -200,6 +208,10 @@ def compare_mesh(path, args):
               file=sys.stderr)
 
     points = query_points(v, args.points, args.seed)
+    if not args.closest_only and args.other_rays > 0:
+        o, d = sets["random"]
+        others.append(compare_other_queries(path, bvh, tm, tm_embree, o[:args.other_rays],
+                                            d[:args.other_rays], points, args.repeat))
     o3d_points = o3d.core.Tensor(points)
     seconds, answers = time_interleaved({
         "hbv_1": lambda: bvh.closest_point(points, threads=1),
@@ -226,13 +238,65 @@ def compare_mesh(path, args):
     }
     print(f"{path.name} closest point: " + ", ".join(
         f"{k} {x:.3f}" for k, x in closest["mqueries_per_s"].items()), file=sys.stderr)
-    return rows, closest, cores
+    return rows, closest, others, cores
 
 
-def print_tables(rows, closest, cores):
+def compare_other_queries(path, bvh, tm, tm_embree, o, d, points, repeat):
+    """intersect_all, count and contains against trimesh's Embree-based answers."""
+    def trimesh_counts():
+        _, ray_ids = tm_embree.intersects_id(o, d, multiple_hits=True)
+        return np.bincount(ray_ids, minlength=len(o))
+
+    seconds, answers = time_interleaved({
+        "intersect_all_hbv_1": lambda: bvh.intersect_all(o, d, threads=1),
+        "intersect_all_hbv_all": lambda: bvh.intersect_all(o, d),
+        "intersect_all_trimesh_1": lambda: tm_embree.intersects_location(o, d, multiple_hits=True),
+        "count_hbv_1": lambda: bvh.count(o, d, threads=1),
+        "count_hbv_all": lambda: bvh.count(o, d),
+        "count_trimesh_1": trimesh_counts,
+        "contains_hbv_1": lambda: bvh.contains(points, threads=1),
+        "contains_hbv_all": lambda: bvh.contains(points),
+        "contains_trimesh_1": lambda: tm.contains(points),
+    }, repeat)
+    size = lambda name: len(points) if name.startswith("contains") else len(o)
+    row = {
+        "mesh": path.name, "triangles": len(tm.faces), "rays": len(o), "points": len(points),
+        "mqueries_per_s": {name: size(name) / s / 1e6 for name, s in seconds.items()},
+        # trimesh's re-cast rays can miss or repeat a hit at a shared edge; hbv's answers are
+        # checked against brute force in its tests. These say how often the two agree.
+        "same_count_as_trimesh": float((answers["count_hbv_1"] == answers["count_trimesh_1"]).mean()),
+        "same_inside_as_trimesh": float((answers["contains_hbv_1"] == answers["contains_trimesh_1"]).mean()),
+    }
+    print(f"{path.name} other queries: " + ", ".join(
+        f"{k} {x:.3f}" for k, x in row["mqueries_per_s"].items()), file=sys.stderr)
+    return row
+
+
+def print_tables(rows, closest, others, cores):
     if rows:
         print_ray_table(rows, cores)
     print_closest_table(closest)
+    if others:
+        print_other_table(others, cores)
+
+
+def print_other_table(others, cores):
+    print(f"\nEvery hit, hit counts and inside tests against trimesh (Embree), M rays or points/s "
+          f"(one thread = 1; all = {cores} threads); ratios are hbv / trimesh.\n")
+    print("| mesh | rays / points | query | hbv 1 | hbv all | trimesh 1 | **hbv / trimesh (1)** | "
+          "**hbv all / trimesh** | same answers as trimesh |")
+    print("| --- | --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |")
+    for r in others:
+        q = r["mqueries_per_s"]
+        for query, trimesh_name, n, same in [
+            ("intersect_all", "intersects_location", r["rays"], None),
+            ("count", "intersects_id", r["rays"], r["same_count_as_trimesh"]),
+            ("contains", "contains", r["points"], r["same_inside_as_trimesh"]),
+        ]:
+            one, every, theirs = (q[f"{query}_{who}"] for who in ("hbv_1", "hbv_all", "trimesh_1"))
+            agree = "—" if same is None else f"{100 * same:.2f} %"
+            print(f"| {r['mesh']} | {n:,} | `{query}` / `{trimesh_name}` | {one:.3f} | {every:.3f} | "
+                  f"{theirs:.3f} | **{one / theirs:.1f}×** | **{every / theirs:.1f}×** | {agree} |")
 
 
 def print_ray_table(rows, cores):
@@ -269,15 +333,17 @@ def print_closest_table(closest):
 def main():
     args = parse_args()
     meshes = args.meshes or default_meshes()
-    rows, closest = [], []
+    rows, closest, others = [], [], []
     cores = os.cpu_count()
     for path in meshes:
-        r, c, cores = compare_mesh(path, args)
+        r, c, o, cores = compare_mesh(path, args)
         rows += r
         closest.append(c)
-    print_tables(rows, closest, cores)
+        others += o
+    print_tables(rows, closest, others, cores)
     if args.json:
-        args.json.write_text(json.dumps({"cores": cores, "rays": rows, "closest_point": closest}, indent=1))
+        args.json.write_text(json.dumps({"cores": cores, "rays": rows, "closest_point": closest,
+                                         "other_queries": others}, indent=1))
 
 
 if __name__ == "__main__":
