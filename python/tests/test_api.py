@@ -46,8 +46,14 @@ def test_bad_arguments_raise_clear_errors(sphere):
         bvh.intersect(o, d.astype(complex))
     with pytest.raises(ValueError, match="tmax: expected 4 rows"):
         bvh.intersect(o, d, tmax=np.ones(3))
+    for bad in (0, -1, 2**70):
+        with pytest.raises(ValueError, match=f"threads: expected a positive number of threads.*got {bad}"):
+            bvh.occluded(o, d, threads=bad)
+    for bad in (1.5, "2", True):
+        with pytest.raises(TypeError, match="threads: expected a positive number of threads"):
+            bvh.intersect(o, d, threads=bad)
     with pytest.raises(ValueError, match="threads"):
-        bvh.occluded(o, d, threads=0)
+        bvh.closest_point(np.zeros((2, 3)), threads=-2)
     with pytest.raises(ValueError, match="points: expected shape"):
         bvh.closest_point(np.zeros((2, 2)))
     with pytest.raises(TypeError, match="mesh: expected an hbv.Mesh"):

@@ -21,7 +21,7 @@ use crate::build_options::BuildOptions;
 use crate::bvh_file::{describe, save};
 use crate::mesh::PyMesh;
 use crate::ray_queries::{any_hits, closest_hits, every_hit, hit_counts, inside, RayArgs};
-use crate::thread_pool::run_here_or_on_threads;
+use crate::thread_pool::{run_here_or_on_threads, ThreadCount};
 
 /// A bounding volume hierarchy over a mesh, answering ray and point queries.
 ///
@@ -222,7 +222,7 @@ impl PyBvh {
         directions: &Bound<'py, PyAny>,
         tmin: Option<&Bound<'py, PyAny>>,
         tmax: Option<&Bound<'py, PyAny>>,
-        threads: Option<usize>,
+        threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
         closest_hits(py, &*self.accel, &args, threads)
@@ -237,7 +237,7 @@ impl PyBvh {
         directions: &Bound<'py, PyAny>,
         tmin: Option<&Bound<'py, PyAny>>,
         tmax: Option<&Bound<'py, PyAny>>,
-        threads: Option<usize>,
+        threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
         any_hits(py, &*self.accel, &args, threads)
@@ -254,7 +254,7 @@ impl PyBvh {
         directions: &Bound<'py, PyAny>,
         tmin: Option<&Bound<'py, PyAny>>,
         tmax: Option<&Bound<'py, PyAny>>,
-        threads: Option<usize>,
+        threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
         every_hit(py, || self.wide(), &args, threads)
@@ -269,7 +269,7 @@ impl PyBvh {
         directions: &Bound<'py, PyAny>,
         tmin: Option<&Bound<'py, PyAny>>,
         tmax: Option<&Bound<'py, PyAny>>,
-        threads: Option<usize>,
+        threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
         hit_counts(py, || self.wide(), &args, threads)
@@ -282,7 +282,7 @@ impl PyBvh {
         &self,
         py: Python<'py>,
         points: &Bound<'py, PyAny>,
-        threads: Option<usize>,
+        threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         inside(py, || self.wide(), points, threads)
     }
@@ -296,7 +296,7 @@ impl PyBvh {
         &self,
         py: Python<'py>,
         points: &Bound<'py, PyAny>,
-        threads: Option<usize>,
+        threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let points = read_points(points)?;
         let n = points.len();

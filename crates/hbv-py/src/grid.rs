@@ -12,6 +12,7 @@ use pyo3::types::{PyDict, PyTuple};
 
 use crate::mesh::PyMesh;
 use crate::ray_queries::{any_hits, closest_hits, every_hit, hit_counts, inside, RayArgs};
+use crate::thread_pool::ThreadCount;
 
 /// A uniform grid over a mesh (cells of equal size, each listing the triangles that overlap it,
 /// walked cell by cell along the ray: 3D-DDA of Amanatides & Woo 1987, with mailboxes).
@@ -88,7 +89,7 @@ impl PyGrid {
         directions: &Bound<'py, PyAny>,
         tmin: Option<&Bound<'py, PyAny>>,
         tmax: Option<&Bound<'py, PyAny>>,
-        threads: Option<usize>,
+        threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
         closest_hits(py, &self.grid, &args, threads)
@@ -103,7 +104,7 @@ impl PyGrid {
         directions: &Bound<'py, PyAny>,
         tmin: Option<&Bound<'py, PyAny>>,
         tmax: Option<&Bound<'py, PyAny>>,
-        threads: Option<usize>,
+        threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
         any_hits(py, &self.grid, &args, threads)
@@ -119,7 +120,7 @@ impl PyGrid {
         directions: &Bound<'py, PyAny>,
         tmin: Option<&Bound<'py, PyAny>>,
         tmax: Option<&Bound<'py, PyAny>>,
-        threads: Option<usize>,
+        threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
         every_hit(py, || &self.grid, &args, threads)
@@ -134,7 +135,7 @@ impl PyGrid {
         directions: &Bound<'py, PyAny>,
         tmin: Option<&Bound<'py, PyAny>>,
         tmax: Option<&Bound<'py, PyAny>>,
-        threads: Option<usize>,
+        threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
         hit_counts(py, || &self.grid, &args, threads)
@@ -146,7 +147,7 @@ impl PyGrid {
         &self,
         py: Python<'py>,
         points: &Bound<'py, PyAny>,
-        threads: Option<usize>,
+        threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         inside(py, || &self.grid, points, threads)
     }

@@ -11,7 +11,7 @@ use pyo3::types::{PyDict, PyTuple};
 use rayon::prelude::*;
 
 use crate::arrays::{float_array, interval_bound, BoundSlice, Floats, IntervalBound};
-use crate::thread_pool::{fill_rows, run_on_threads, GRAIN};
+use crate::thread_pool::{fill_rows, run_on_threads, ThreadCount, GRAIN};
 
 /// The ray arguments of a query, read and checked.
 pub struct RayArgs<'py> {
@@ -88,7 +88,7 @@ pub fn closest_hits<'py>(
     py: Python<'py>,
     accel: &dyn Accelerator,
     args: &RayArgs<'py>,
-    threads: Option<usize>,
+    threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let batch = args.batch();
     let n = batch.len;
@@ -134,7 +134,7 @@ pub fn any_hits<'py>(
     py: Python<'py>,
     accel: &dyn Accelerator,
     args: &RayArgs<'py>,
-    threads: Option<usize>,
+    threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<bool>>> {
     let batch = args.batch();
     let mut occluded = vec![false; batch.len];
@@ -158,7 +158,7 @@ pub fn every_hit<'py, 's, A: AllHits + ?Sized + 's>(
     py: Python<'py>,
     structure: impl FnOnce() -> &'s A + Send,
     args: &RayArgs<'py>,
-    threads: Option<usize>,
+    threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyTuple>> {
     let batch = args.batch();
     let hits = py.detach(|| {
@@ -185,7 +185,7 @@ pub fn hit_counts<'py, 's, A: AllHits + ?Sized + 's>(
     py: Python<'py>,
     structure: impl FnOnce() -> &'s A + Send,
     args: &RayArgs<'py>,
-    threads: Option<usize>,
+    threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<i64>>> {
     let batch = args.batch();
     let mut counts = vec![0i64; batch.len];
@@ -208,7 +208,7 @@ pub fn inside<'py, 's, A: AllHits + ?Sized + 's>(
     py: Python<'py>,
     structure: impl FnOnce() -> &'s A + Send,
     points: &Bound<'py, PyAny>,
-    threads: Option<usize>,
+    threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<bool>>> {
     let (points, _) = float_array("points", points, Some(3), None)?;
     let points = points.as_slice();

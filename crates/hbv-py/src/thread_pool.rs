@@ -8,8 +8,9 @@
 
 use std::sync::{Arc, Mutex};
 
-use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyInt};
 
 /// Rows per run a thread takes: enough to hide scheduling, few enough to balance many cores.
 pub const GRAIN: usize = 256;
@@ -22,25 +23,54 @@ pub const GRAIN: usize = 256;
 /// between calls; BENCHMARKS.md).
 pub const SERIAL_ROWS: usize = 8 * GRAIN;
 
-/// `threads=0`: an error, whatever the batch (checked before any work).
-fn check(threads: Option<usize>) -> PyResult<()> {
-    if threads == Some(0) {
-        return Err(PyValueError::new_err(
-            "threads: expected a positive number of threads, or None for all cores",
-        ));
+/// A `threads=` count as Python gives it: a positive integer (`None`, every core, is the
+/// `Option` around it). Zero, negative, fractional and non-numeric counts are refused when the
+/// arguments are read, before any work, with one message naming the argument.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ThreadCount(usize);
+
+impl ThreadCount {
+    /// The number of threads, at least 1.
+    pub fn get(self) -> usize {
+        self.0
     }
-    Ok(())
+}
+
+impl<'a, 'py> FromPyObject<'a, 'py> for ThreadCount {
+    type Error = PyErr;
+
+    fn extract(obj: Borrowed<'a, 'py, PyAny>) -> PyResult<Self> {
+        let refused = || {
+            let message = format!(
+                "threads: expected a positive number of threads, or None for all cores; got {}",
+                obj.repr()
+                    .map_or_else(|_| "?".to_owned(), |r| r.to_string())
+            );
+            if obj.is_instance_of::<PyInt>() && !obj.is_instance_of::<PyBool>() {
+                PyValueError::new_err(message)
+            } else {
+                PyTypeError::new_err(message)
+            }
+        };
+        // bool is an int in Python, but `threads=True` is surely a mistake.
+        if obj.is_instance_of::<PyBool>() {
+            return Err(refused());
+        }
+        match obj.extract::<i64>() {
+            Ok(n) if n >= 1 => usize::try_from(n).map(Self).map_err(|_| refused()),
+            _ => Err(refused()),
+        }
+    }
 }
 
 /// Runs `work` on all cores (`threads` = None) or on a pool of exactly `threads` threads.
 pub fn run_on_threads<T: Send>(
-    threads: Option<usize>,
+    threads: Option<ThreadCount>,
     work: impl FnOnce() -> T + Send,
 ) -> PyResult<T> {
-    check(threads)?;
     match threads {
-        Some(n) if n > 0 => Ok(pool_of(n)?.install(work)),
-        _ => Ok(work()),
+        Some(n) => Ok(pool_of(n.get())?.install(work)),
+        None => Ok(work()),
     }
 }
 
@@ -48,10 +78,9 @@ pub fn run_on_threads<T: Send>(
 /// the pool, and should not wait for it to wake).
 pub fn run_here_or_on_threads<T: Send>(
     here: bool,
-    threads: Option<usize>,
+    threads: Option<ThreadCount>,
     work: impl FnOnce() -> T + Send,
 ) -> PyResult<T> {
-    check(threads)?;
     if here {
         return Ok(work());
     }
@@ -114,12 +143,11 @@ impl<A: Rows, B: Rows> Rows for (A, B) {
 /// one thread per core (with the caller working too, a full pool would share a core between
 /// two threads).
 pub fn fill_rows<R: Rows>(
-    threads: Option<usize>,
+    threads: Option<ThreadCount>,
     rows: R,
     fill: impl Fn(usize, R) + Sync + Send,
 ) -> PyResult<()> {
-    check(threads)?;
-    if threads == Some(1) || rows.rows() <= SERIAL_ROWS {
+    if threads.is_some_and(|n| n.get() == 1) || rows.rows() <= SERIAL_ROWS {
         fill(0, rows);
         return Ok(());
     }
@@ -135,7 +163,9 @@ pub fn fill_rows<R: Rows>(
         }
     };
     match threads {
-        Some(n) => pool_of(n)?.in_place_scope(|scope| beside_caller(scope, n - 1, &take_runs)),
+        Some(n) => {
+            pool_of(n.get())?.in_place_scope(|scope| beside_caller(scope, n.get() - 1, &take_runs))
+        }
         None => rayon::in_place_scope(|scope| {
             beside_caller(scope, rayon::current_num_threads() - 1, &take_runs)
         }),
