@@ -82,11 +82,18 @@ def test_dtypes_and_strides_give_the_same_answers(sphere):
     want = bvh.intersect(o32, d32)
     assert want["t"].dtype == np.float32 and want["prim"].dtype == np.int64
     assert want["hit"].dtype == bool and want["u"].dtype == np.float32
+    # float64 read in place (C order) or converted (Fortran order, strided), float32 likewise.
     for oo, dd in [(o, d), (np.asfortranarray(o32), d32), (o32, np.repeat(d32, 2, 0)[::2]),
-                   (o32.tolist(), d32.tolist())]:
+                   (np.asfortranarray(o), np.repeat(d, 2, 0)[::2]), (o32.tolist(), d32.tolist())]:
         got = bvh.intersect(oo, dd)
         for k in want:
             np.testing.assert_array_equal(got[k], want[k])
+    tmin, tmax = np.linspace(0, 2, 500), np.linspace(3, 9, 500)
+    want = bvh.intersect(o32, d32, tmin=tmin.astype(np.float32), tmax=tmax.astype(np.float32))
+    got = bvh.intersect(o, d, tmin=tmin, tmax=tmax)
+    for k in want:
+        np.testing.assert_array_equal(got[k], want[k])
+    np.testing.assert_array_equal(bvh.contains(o), bvh.contains(o32))
 
 
 def test_misses_and_invalid_rays_follow_rays_md(sphere):

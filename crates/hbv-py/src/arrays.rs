@@ -1,6 +1,7 @@
 //! NumPy arguments: checked for shape and dtype with errors that name the argument, read in
-//! place when they are C-contiguous float32, converted otherwise (float64, strided).
+//! place when they are C-contiguous float32 or float64, converted otherwise (strided, integer).
 
+use hbv::glam::Vec3;
 use numpy::{
     PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
     PyUntypedArrayMethods,
@@ -8,18 +9,74 @@ use numpy::{
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
-/// float32 values of an argument: borrowed from the caller's array, or converted.
+/// The values of a float argument: the caller's float32 or float64 array, borrowed, or a
+/// float32 copy.
 pub enum Floats<'py> {
     Borrowed(PyReadonlyArrayDyn<'py, f32>),
+    BorrowedF64(PyReadonlyArrayDyn<'py, f64>),
     Owned(Vec<f32>),
 }
 
 impl Floats<'_> {
-    pub fn as_slice(&self) -> &[f32] {
+    /// The values as the query loops read them (no GIL needed).
+    pub fn values(&self) -> FloatSlice<'_> {
         match self {
-            Floats::Borrowed(a) => a.as_slice().expect("checked contiguous"),
-            Floats::Owned(v) => v,
+            Floats::Borrowed(a) => FloatSlice::F32(a.as_slice().expect("checked contiguous")),
+            Floats::BorrowedF64(a) => FloatSlice::F64(a.as_slice().expect("checked contiguous")),
+            Floats::Owned(v) => FloatSlice::F32(v),
         }
+    }
+}
+
+/// Float values in place, float32 or float64; read as float32, each value rounded to nearest
+/// when it is read. Converting a float64 array up front took longer than tracing a camera ray
+/// (ndarray's n-dimensional iterator: 9 ns a ray), and ran on one thread with the GIL
+/// held; read in place, the conversion is spread over the query's threads.
+#[derive(Clone, Copy)]
+pub enum FloatSlice<'a> {
+    F32(&'a [f32]),
+    F64(&'a [f64]),
+}
+
+impl FloatSlice<'_> {
+    /// Value `i` as float32.
+    #[inline]
+    pub fn at(&self, i: usize) -> f32 {
+        match self {
+            FloatSlice::F32(v) => v[i],
+            FloatSlice::F64(v) => v[i] as f32,
+        }
+    }
+
+    /// Row `i` of an `(N, 3)` array as a vector (in loops, match the slice once outside and
+    /// use [`Coordinate::row3`]).
+    #[inline]
+    pub fn row3(&self, i: usize) -> Vec3 {
+        match self {
+            FloatSlice::F32(v) => f32::row3(v, i),
+            FloatSlice::F64(v) => f64::row3(v, i),
+        }
+    }
+}
+
+/// An element type of a float array read in place.
+pub trait Coordinate: Copy {
+    /// Row `i` of an `(N, 3)` array of this type, each value rounded to nearest float32.
+    fn row3(values: &[Self], i: usize) -> Vec3;
+}
+
+impl Coordinate for f32 {
+    #[inline(always)]
+    fn row3(values: &[f32], i: usize) -> Vec3 {
+        Vec3::from_slice(&values[3 * i..3 * i + 3])
+    }
+}
+
+impl Coordinate for f64 {
+    #[inline(always)]
+    fn row3(values: &[f64], i: usize) -> Vec3 {
+        let r = &values[3 * i..3 * i + 3];
+        Vec3::new(r[0] as f32, r[1] as f32, r[2] as f32)
     }
 }
 
@@ -63,7 +120,8 @@ fn shape_text(shape: &[usize]) -> String {
 }
 
 /// Reads a float array of shape `(N, 3)` (or `(N,)` with `columns = None`); `rows` fixes N.
-/// float32 C-contiguous arrays are borrowed; float64 and strided arrays are converted.
+/// C-contiguous float32 and float64 arrays are borrowed; strided and integer arrays are
+/// converted to float32.
 pub fn float_array<'py>(
     name: &str,
     obj: &Bound<'py, PyAny>,
@@ -113,7 +171,12 @@ pub fn float_array<'py>(
             Floats::Owned(a.as_array().iter().copied().collect())
         }
     } else if let Ok(a) = array.cast::<PyArrayDyn<f64>>() {
-        Floats::Owned(a.readonly().as_array().iter().map(|&x| x as f32).collect())
+        let a = a.readonly();
+        if a.is_c_contiguous() {
+            Floats::BorrowedF64(a)
+        } else {
+            Floats::Owned(a.as_array().iter().map(|&x| x as f32).collect())
+        }
     } else {
         return Err(PyTypeError::new_err(format!(
             "{name}: expected a float32 or float64 (or integer) array, got dtype {}",
@@ -186,18 +249,18 @@ pub fn interval_bound<'py>(
     Ok(IntervalBound::PerRay(floats))
 }
 
-/// A bound as the slice form the query loops read: a constant, or one value per ray.
+/// A bound as the query loops read it: a constant, or one value per ray.
 #[derive(Clone, Copy)]
 pub enum BoundSlice<'a> {
     Scalar(f32),
-    PerRay(&'a [f32]),
+    PerRay(FloatSlice<'a>),
 }
 
 impl IntervalBound<'_> {
     pub fn as_slice(&self) -> BoundSlice<'_> {
         match self {
             IntervalBound::Scalar(x) => BoundSlice::Scalar(*x),
-            IntervalBound::PerRay(f) => BoundSlice::PerRay(f.as_slice()),
+            IntervalBound::PerRay(f) => BoundSlice::PerRay(f.values()),
         }
     }
 }
@@ -207,7 +270,7 @@ impl BoundSlice<'_> {
     pub fn at(&self, i: usize) -> f32 {
         match self {
             BoundSlice::Scalar(x) => *x,
-            BoundSlice::PerRay(v) => v[i],
+            BoundSlice::PerRay(v) => v.at(i),
         }
     }
 }

@@ -33,12 +33,9 @@ pub fn mesh_error(e: MeshError) -> PyErr {
 impl PyMesh {
     #[new]
     fn new(vertices: &Bound<'_, PyAny>, faces: &Bound<'_, PyAny>) -> PyResult<Self> {
-        let (floats, _) = float_array("vertices", vertices, Some(3), None)?;
-        let positions: Vec<Vec3> = floats
-            .as_slice()
-            .chunks_exact(3)
-            .map(Vec3::from_slice)
-            .collect();
+        let (floats, rows) = float_array("vertices", vertices, Some(3), None)?;
+        let values = floats.values();
+        let positions: Vec<Vec3> = (0..rows).map(|i| values.row3(i)).collect();
         let indices = index_array("faces", faces)?;
         let mesh = TriangleMesh::new(positions, indices).map_err(mesh_error)?;
         Ok(Self {
