@@ -12,6 +12,11 @@ or points at a time (all cores, GIL released):
 Answers are exact (watertight ray/triangle test, checked against brute force) and deterministic
 (equal ``t``: the smaller triangle id wins).
 
+Rays and points are arrays of shape (N, 3), float32 or float64: read in place when C-ordered,
+converted otherwise (strided, integer, lists); ``tmin`` / ``tmax`` a number or an (N,) array.
+``threads``: ``None`` (every core) or a positive count; batches of up to 2,048 rays stay on the
+calling thread, where waking other threads would cost more than the work.
+
 >>> import numpy as np, hbv
 >>> mesh = hbv.Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32), np.array([[0, 1, 2]]))
 >>> bvh = hbv.BVH(mesh)
