@@ -13,6 +13,7 @@
 //! [`NodeFrame`] facing their mean normal, when that makes the boxes smaller.
 
 use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 use super::box_bound::{Boxes, PointBracket};
 use super::node_frame::{NodeFrame, FRAME_SHRINK};
@@ -121,6 +122,7 @@ impl SearchTree {
         };
         let below = triangles_below(tree);
         let leaf_max = config.leaf_triangles.max(1) as u32;
+        let mut planned = PacketPlan::default();
         search.nodes.push(QuadNode::EMPTY);
         let mut pending: Vec<(Vec<NodeId>, usize)> = vec![(vec![root], 0)];
         while let Some((members, index)) = pending.pop() {
@@ -149,8 +151,8 @@ impl SearchTree {
             for (k, slot) in slots.into_iter().enumerate() {
                 match slot {
                     Slot::Leaf(id) => {
-                        let first = search.packets.len() as u32;
-                        let count = search.push_leaf(tree, mesh, id);
+                        let first = planned.groups.len() as u32;
+                        let count = search.plan_leaf(tree, mesh, id, &mut planned);
                         if count > 0 {
                             let node = &mut search.nodes[index];
                             node.set_bounds(k, boxes[k]);
@@ -177,6 +179,12 @@ impl SearchTree {
                 }
             }
         }
+        // The packets' enclosures are most of the build: made in parallel, in the planned order.
+        search.packets = planned
+            .groups
+            .par_iter()
+            .map(|group| TrianglePacket::new(&planned.triangles[group.clone()]))
+            .collect();
         search
     }
 
@@ -230,9 +238,16 @@ impl SearchTree {
         members.into_iter().map(classify).collect()
     }
 
-    /// Appends the non-degenerate triangles below `id` as packets; returns how many.
-    fn push_leaf(&mut self, tree: &BuildTree, mesh: &TriangleMesh, id: NodeId) -> u32 {
-        let mut kept: Vec<(u32, [Vec3; 3])> = Vec::new();
+    /// Plans the non-degenerate triangles below `id` as the next packets; returns how many
+    /// triangles.
+    fn plan_leaf(
+        &mut self,
+        tree: &BuildTree,
+        mesh: &TriangleMesh,
+        id: NodeId,
+        planned: &mut PacketPlan,
+    ) -> u32 {
+        let start = planned.triangles.len();
         for p in tree.prims_below(id) {
             let t = mesh.triangle(p as usize);
             if t.is_degenerate() {
@@ -241,13 +256,22 @@ impl SearchTree {
             for v in [t.p0, t.p1, t.p2] {
                 self.mesh_scale = self.mesh_scale.max(v.abs().max_element() as f64);
             }
-            kept.push((p, [t.p0, t.p1, t.p2]));
+            planned.triangles.push((p, [t.p0, t.p1, t.p2]));
         }
-        for group in kept.chunks(LANES) {
-            self.packets.push(TrianglePacket::new(group));
-        }
-        kept.len() as u32
+        let end = planned.triangles.len();
+        planned
+            .groups
+            .extend((start..end).step_by(LANES).map(|g| g..(g + LANES).min(end)));
+        (end - start) as u32
     }
+}
+
+/// The packets a [`SearchTree`] will hold, in order: each a range of `triangles` (one leaf's
+/// triangles in runs of [`LANES`]), made once the tree's shape is known.
+#[derive(Default)]
+struct PacketPlan {
+    triangles: Vec<(u32, [Vec3; 3])>,
+    groups: Vec<std::ops::Range<usize>>,
 }
 
 impl Slot {
