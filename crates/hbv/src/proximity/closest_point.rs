@@ -7,6 +7,9 @@ use super::box_bound::{prune_threshold, rounding_margin, PointBracket};
 use super::candidate_grid::{
     CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, NearestTriangles,
 };
+#[cfg(target_arch = "x86_64")]
+use super::lane_masks::AvxMasks;
+use super::lane_masks::{LaneMasks, PortableMasks};
 use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
 use super::search_tree::{SearchTree, SearchTreeConfig, WIDTH};
 use super::triangle_packet::LANES;
@@ -199,13 +202,14 @@ impl ClosestPointTree {
 
     /// [`ClosestPointTree::closest_point`] for an f64 query point.
     pub fn closest_point_f64(&self, p: DVec3) -> Option<ClosestPoint> {
-        self.query(p, &mut Vec::new())
+        self.query::<PortableMasks>(p, &mut Vec::new())
     }
 
     /// [`ClosestPointTree::closest_point_f64`] by a tree search without seed (the grid is not
     /// used), counting its steps into `tally`.
     pub fn closest_point_tallied(&self, p: DVec3, tally: &mut SearchTally) -> Option<ClosestPoint> {
-        self.search(p, None, &mut Vec::new(), tally).map(|(c, _)| c)
+        self.search::<PortableMasks>(p, None, &mut Vec::new(), tally)
+            .map(|(c, _)| c)
     }
 
     /// [`ClosestPointTree::closest_points`]'s Morton-ordered, seeded batch search (whatever the
@@ -240,7 +244,7 @@ impl ClosestPointTree {
             let mut seed = None;
             for &(_, i) in run {
                 let mut tally = SearchTally::default();
-                let found = self.search(points[i], seed, &mut stack, &mut tally);
+                let found = self.search::<PortableMasks>(points[i], seed, &mut stack, &mut tally);
                 seed = found.map(|(_, local)| local).or(seed);
                 out[i] = (found.map(|(c, _)| c), tally);
             }
@@ -251,9 +255,9 @@ impl ClosestPointTree {
     /// One query: from the grid's candidates, or a tree search from the grid's seed (or no seed
     /// without a grid).
     #[inline(always)]
-    fn query(&self, p: DVec3, stack: &mut Vec<Pending>) -> Option<ClosestPoint> {
+    fn query<M: LaneMasks>(&self, p: DVec3, stack: &mut Vec<Pending>) -> Option<ClosestPoint> {
         let Some(grid) = &self.grid else {
-            return self.search(p, None, stack, &mut ()).map(|(c, _)| c);
+            return self.search::<M>(p, None, stack, &mut ()).map(|(c, _)| c);
         };
         if !p.is_finite() {
             return None;
@@ -266,7 +270,9 @@ impl ClosestPointTree {
                 u: q.u,
                 v: q.v,
             }),
-            CellAnswer::Seed(seed) => self.search(p, Some(seed), stack, &mut ()).map(|(c, _)| c),
+            CellAnswer::Seed(seed) => self
+                .search::<M>(p, Some(seed), stack, &mut ())
+                .map(|(c, _)| c),
         }
     }
 
@@ -425,19 +431,25 @@ impl ClosestPointTree {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn answer_run_avx2(&self, run: &[DVec3], write: impl FnMut(usize, Option<ClosestPoint>)) {
-        self.answer_run_portable(run, write);
+        self.answer_run_with::<AvxMasks>(run, write);
     }
 
-    /// [`ClosestPointTree::answer_run`] in whatever features its caller is compiled for.
+    /// [`ClosestPointTree::answer_run`] for the x86-64 baseline.
+    fn answer_run_portable(&self, run: &[DVec3], write: impl FnMut(usize, Option<ClosestPoint>)) {
+        self.answer_run_with::<PortableMasks>(run, write);
+    }
+
+    /// [`ClosestPointTree::answer_run`] with the lane masks `M`, in whatever features its
+    /// caller is compiled for.
     #[inline(always)]
-    fn answer_run_portable(
+    fn answer_run_with<M: LaneMasks>(
         &self,
         run: &[DVec3],
         mut write: impl FnMut(usize, Option<ClosestPoint>),
     ) {
         let mut stack = Vec::with_capacity(64);
         for (k, &p) in run.iter().enumerate() {
-            write(k, self.query(p, &mut stack));
+            write(k, self.query::<M>(p, &mut stack));
         }
     }
 
@@ -459,16 +471,22 @@ impl ClosestPointTree {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn search_run_avx2(&self, run: &[DVec3], out: &mut [Option<ClosestPoint>]) {
-        self.search_run_portable(run, out);
+        self.search_run_with::<AvxMasks>(run, out);
     }
 
-    /// [`ClosestPointTree::search_run`] in whatever features its caller is compiled for.
-    #[inline(always)]
+    /// [`ClosestPointTree::search_run`] for the x86-64 baseline.
     fn search_run_portable(&self, run: &[DVec3], out: &mut [Option<ClosestPoint>]) {
+        self.search_run_with::<PortableMasks>(run, out);
+    }
+
+    /// [`ClosestPointTree::search_run`] with the lane masks `M`, in whatever features its
+    /// caller is compiled for.
+    #[inline(always)]
+    fn search_run_with<M: LaneMasks>(&self, run: &[DVec3], out: &mut [Option<ClosestPoint>]) {
         let mut seed = None;
         let mut stack = Vec::with_capacity(64);
         for (o, &p) in out.iter_mut().zip(run) {
-            let found = self.search(p, seed, &mut stack, &mut ());
+            let found = self.search::<M>(p, seed, &mut stack, &mut ());
             seed = found.map(|(_, local)| local).or(seed);
             *o = found.map(|(c, _)| c);
         }
@@ -481,7 +499,7 @@ impl ClosestPointTree {
     /// best so far when given; returns the answer and its triangle's `LANES × packet + lane`.
     /// `stack` is scratch space, reused between searches.
     #[inline(always)]
-    fn search(
+    fn search<M: LaneMasks>(
         &self,
         p: DVec3,
         seed: Option<u32>,
@@ -516,16 +534,13 @@ impl ClosestPointTree {
                 continue;
             }
             if pending.triangles > 0 {
-                self.search_leaf(p, &bracket, pending, seed, &mut best, tally);
+                self.search_leaf::<M>(p, &bracket, pending, seed, &mut best, tally);
                 continue;
             }
             tally.node();
             let node = &tree.nodes[pending.child as usize];
             let bounds = node.distance_squared_lower_bounds(&bracket);
-            let mut within = 0u32;
-            for (k, &bound) in bounds.iter().enumerate() {
-                within |= ((bound <= best.threshold) as u32) << k;
-            }
+            let mut within = M::within(&bounds, best.threshold);
             // The children within the threshold: the nearest is searched next, the others
             // pushed farthest first.
             let mut near = [Pending {
@@ -574,7 +589,7 @@ impl ClosestPointTree {
     /// for those within the threshold, but the search's seed (decided first, and always within
     /// the threshold of its own distance: on spot 5.6 → 5.0 exact tests per query).
     #[inline(always)]
-    fn search_leaf(
+    fn search_leaf<M: LaneMasks>(
         &self,
         p: DVec3,
         bracket: &PointBracket,
@@ -592,13 +607,8 @@ impl ClosestPointTree {
         while left > 0 {
             tally.packet();
             let bounds = self.tree.packets[packet].distance_squared_lower_bounds(bracket);
-            let mut within = 0u32;
-            for (lane, &bound) in bounds.iter().enumerate() {
-                // Not `bound <= threshold`: a NaN bound must not prune.
-                #[allow(clippy::neg_cmp_op_on_partial_ord)]
-                let keep = !(bound > best.threshold);
-                within |= (keep as u32) << lane;
-            }
+            // Not `bound <= threshold`: a NaN bound must not prune.
+            let mut within = M::not_beyond(&bounds, best.threshold);
             // Lanes past the leaf's last triangle repeat lane 0.
             within &= (1u32 << left.min(LANES)) - 1;
             if packet == seed_packet {
@@ -680,7 +690,7 @@ impl ClosestPointTree {
 
 impl NearestTriangles for ClosestPointTree {
     fn nearest(&self, p: DVec3) -> Option<u32> {
-        self.search(p, None, &mut Vec::new(), &mut ())
+        self.search::<PortableMasks>(p, None, &mut Vec::new(), &mut ())
             .map(|(_, local)| local)
     }
 

@@ -11,6 +11,7 @@ mod candidate_grid;
 pub mod closest_point;
 mod directed_rounding;
 pub mod inside;
+mod lane_masks;
 mod node_frame;
 pub mod point_triangle;
 mod search_tree;
