@@ -7,10 +7,11 @@ use super::box_bound::{prune_threshold, rounding_margin, PointBracket};
 use super::candidate_grid::{
     CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, NearestTriangles,
 };
-#[cfg(target_arch = "x86_64")]
-use super::lane_masks::AvxMasks;
-use super::lane_masks::{LaneMasks, PortableMasks};
 use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
+use super::point_triangle_lanes::F64_LANES;
+#[cfg(target_arch = "x86_64")]
+use super::search_lanes::AvxLanes;
+use super::search_lanes::{PortableLanes, SearchLanes};
 use super::search_tree::{SearchTree, SearchTreeConfig, WIDTH};
 use super::triangle_packet::LANES;
 use crate::bvh::morton::morton_code;
@@ -202,13 +203,13 @@ impl ClosestPointTree {
 
     /// [`ClosestPointTree::closest_point`] for an f64 query point.
     pub fn closest_point_f64(&self, p: DVec3) -> Option<ClosestPoint> {
-        self.query::<PortableMasks>(p, &mut Vec::new())
+        self.query::<PortableLanes>(p, &mut Vec::new())
     }
 
     /// [`ClosestPointTree::closest_point_f64`] by a tree search without seed (the grid is not
     /// used), counting its steps into `tally`.
     pub fn closest_point_tallied(&self, p: DVec3, tally: &mut SearchTally) -> Option<ClosestPoint> {
-        self.search::<PortableMasks>(p, None, &mut Vec::new(), tally)
+        self.search::<PortableLanes>(p, None, &mut Vec::new(), tally)
             .map(|(c, _)| c)
     }
 
@@ -244,7 +245,7 @@ impl ClosestPointTree {
             let mut seed = None;
             for &(_, i) in run {
                 let mut tally = SearchTally::default();
-                let found = self.search::<PortableMasks>(points[i], seed, &mut stack, &mut tally);
+                let found = self.search::<PortableLanes>(points[i], seed, &mut stack, &mut tally);
                 seed = found.map(|(_, local)| local).or(seed);
                 out[i] = (found.map(|(c, _)| c), tally);
             }
@@ -255,7 +256,7 @@ impl ClosestPointTree {
     /// One query: from the grid's candidates, or a tree search from the grid's seed (or no seed
     /// without a grid).
     #[inline(always)]
-    fn query<M: LaneMasks>(&self, p: DVec3, stack: &mut Vec<Pending>) -> Option<ClosestPoint> {
+    fn query<M: SearchLanes>(&self, p: DVec3, stack: &mut Vec<Pending>) -> Option<ClosestPoint> {
         let Some(grid) = &self.grid else {
             return self.search::<M>(p, None, stack, &mut ()).map(|(c, _)| c);
         };
@@ -431,18 +432,18 @@ impl ClosestPointTree {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn answer_run_avx2(&self, run: &[DVec3], write: impl FnMut(usize, Option<ClosestPoint>)) {
-        self.answer_run_with::<AvxMasks>(run, write);
+        self.answer_run_with::<AvxLanes>(run, write);
     }
 
     /// [`ClosestPointTree::answer_run`] for the x86-64 baseline.
     fn answer_run_portable(&self, run: &[DVec3], write: impl FnMut(usize, Option<ClosestPoint>)) {
-        self.answer_run_with::<PortableMasks>(run, write);
+        self.answer_run_with::<PortableLanes>(run, write);
     }
 
     /// [`ClosestPointTree::answer_run`] with the lane masks `M`, in whatever features its
     /// caller is compiled for.
     #[inline(always)]
-    fn answer_run_with<M: LaneMasks>(
+    fn answer_run_with<M: SearchLanes>(
         &self,
         run: &[DVec3],
         mut write: impl FnMut(usize, Option<ClosestPoint>),
@@ -471,18 +472,18 @@ impl ClosestPointTree {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     fn search_run_avx2(&self, run: &[DVec3], out: &mut [Option<ClosestPoint>]) {
-        self.search_run_with::<AvxMasks>(run, out);
+        self.search_run_with::<AvxLanes>(run, out);
     }
 
     /// [`ClosestPointTree::search_run`] for the x86-64 baseline.
     fn search_run_portable(&self, run: &[DVec3], out: &mut [Option<ClosestPoint>]) {
-        self.search_run_with::<PortableMasks>(run, out);
+        self.search_run_with::<PortableLanes>(run, out);
     }
 
     /// [`ClosestPointTree::search_run`] with the lane masks `M`, in whatever features its
     /// caller is compiled for.
     #[inline(always)]
-    fn search_run_with<M: LaneMasks>(&self, run: &[DVec3], out: &mut [Option<ClosestPoint>]) {
+    fn search_run_with<M: SearchLanes>(&self, run: &[DVec3], out: &mut [Option<ClosestPoint>]) {
         let mut seed = None;
         let mut stack = Vec::with_capacity(64);
         for (o, &p) in out.iter_mut().zip(run) {
@@ -499,7 +500,7 @@ impl ClosestPointTree {
     /// best so far when given; returns the answer and its triangle's `LANES × packet + lane`.
     /// `stack` is scratch space, reused between searches.
     #[inline(always)]
-    fn search<M: LaneMasks>(
+    fn search<M: SearchLanes>(
         &self,
         p: DVec3,
         seed: Option<u32>,
@@ -589,7 +590,7 @@ impl ClosestPointTree {
     /// for those within the threshold, but the search's seed (decided first, and always within
     /// the threshold of its own distance: on spot 5.6 → 5.0 exact tests per query).
     #[inline(always)]
-    fn search_leaf<M: LaneMasks>(
+    fn search_leaf<M: SearchLanes>(
         &self,
         p: DVec3,
         bracket: &PointBracket,
@@ -614,17 +615,59 @@ impl ClosestPointTree {
             if packet == seed_packet {
                 within &= !(1u32 << seed_lane);
             }
-            while within != 0 {
-                let lane = within.trailing_zeros() as usize;
-                within &= within - 1;
-                // The threshold may have dropped since the bounds were compared.
-                if bounds[lane] <= best.threshold || bounds[lane].is_nan() {
-                    tally.exact();
-                    self.consider(p, (packet * LANES + lane) as u32, best);
+            // A half of the packet with two or more triangles left is decided four lanes at
+            // once (`consider_half`: branch-free, where the lane-by-lane routine mispredicts
+            // its Voronoi-region branches); a single one by the scalar routine. Bunny +2–5 %
+            // against one lane at a time, spot and teapot within 1 %; deciding every half
+            // with a triangle left four at a time: bunny a further +1 %, spot and teapot −2 %.
+            for half in 0..LANES / F64_LANES {
+                let mut lanes = (within >> (half * F64_LANES)) & ((1 << F64_LANES) - 1);
+                if lanes.count_ones() >= 2 {
+                    for _ in 0..F64_LANES {
+                        tally.exact();
+                    }
+                    self.consider_half::<M>(p, packet, half, best);
+                    continue;
+                }
+                while lanes != 0 {
+                    let lane = half * F64_LANES + lanes.trailing_zeros() as usize;
+                    lanes &= lanes - 1;
+                    // The threshold may have dropped since the bounds were compared.
+                    if bounds[lane] <= best.threshold || bounds[lane].is_nan() {
+                        tally.exact();
+                        self.consider(p, (packet * LANES + lane) as u32, best);
+                    }
                 }
             }
             left = left.saturating_sub(LANES);
             packet += 1;
+        }
+    }
+
+    /// Decides the four triangles of half `half` of packet `packet` side by side
+    /// ([`closest_points_on_lanes`]: the same bits as [`ClosestPointTree::consider`] lane by
+    /// lane) and keeps each as `consider` would. Lanes the bounds pruned, past the leaf's end
+    /// (repeats of lane 0) or the seed's are decided too: an exact answer for a triangle of the
+    /// mesh never makes the result wrong.
+    #[inline(always)]
+    fn consider_half<M: SearchLanes>(&self, p: DVec3, packet: usize, half: usize, best: &mut Best) {
+        let data = &self.tree.packets[packet];
+        let found = M::closest_points_on_half(p, &data.vertex, half);
+        for l in 0..F64_LANES {
+            let lane = half * F64_LANES + l;
+            let (d2, prim) = (found.distance_squared[l], data.prim[lane]);
+            let closer =
+                d2 < best.d2 || (d2 == best.d2 && best.found.is_some_and(|(_, b, _)| prim < b));
+            if closer {
+                best.d2 = d2;
+                best.threshold = prune_threshold(d2, best.delta);
+                let q = TrianglePoint {
+                    point: DVec3::new(found.point[0][l], found.point[1][l], found.point[2][l]),
+                    u: found.u[l],
+                    v: found.v[l],
+                };
+                best.found = Some((q, prim, (packet * LANES + lane) as u32));
+            }
         }
     }
 
@@ -690,7 +733,7 @@ impl ClosestPointTree {
 
 impl NearestTriangles for ClosestPointTree {
     fn nearest(&self, p: DVec3) -> Option<u32> {
-        self.search::<PortableMasks>(p, None, &mut Vec::new(), &mut ())
+        self.search::<PortableLanes>(p, None, &mut Vec::new(), &mut ())
             .map(|(_, local)| local)
     }
 
