@@ -9,14 +9,13 @@ use super::candidate_grid::{
 };
 use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
 use super::point_triangle_lanes::F64_LANES;
+use super::query_order::morton_order;
 #[cfg(target_arch = "x86_64")]
 use super::search_lanes::AvxLanes;
 use super::search_lanes::{PortableLanes, SearchLanes};
 use super::search_tree::{SearchTree, SearchTreeConfig, WIDTH};
 use super::triangle_packet::LANES;
-use crate::bvh::morton::morton_code;
 use crate::bvh::BuildTree;
-use crate::geometry::Aabb;
 use crate::mesh::TriangleMesh;
 
 /// The nearest surface point to a query point.
@@ -221,25 +220,10 @@ impl ClosestPointTree {
         &self,
         points: &[DVec3],
     ) -> Vec<(Option<ClosestPoint>, SearchTally)> {
-        let bounds = points
-            .iter()
-            .filter(|p| p.is_finite())
-            .fold(Aabb::EMPTY, |b, p| b.union_point(p.as_vec3()));
-        let mut order: Vec<(u64, usize)> = points
-            .iter()
-            .enumerate()
-            .map(|(i, p)| {
-                (
-                    if p.is_finite() {
-                        morton_code(p.as_vec3(), &bounds)
-                    } else {
-                        u64::MAX
-                    },
-                    i,
-                )
-            })
+        let order: Vec<(u64, usize)> = morton_order(points)
+            .into_iter()
+            .map(|key| (key, key as u32 as usize))
             .collect();
-        order.sort_unstable();
         let mut out = vec![(None, SearchTally::default()); points.len()];
         let mut stack = Vec::with_capacity(64);
         for run in order.chunks(Self::RUN) {
@@ -384,25 +368,7 @@ impl ClosestPointTree {
     /// [`ClosestPointTree::closest_points`]): the sort keys (`code << 32 | index`, ascending)
     /// and the answers in that order.
     fn search_in_morton_order(&self, points: &[DVec3]) -> (Vec<u64>, Vec<Option<ClosestPoint>>) {
-        let bounds = points
-            .iter()
-            .filter(|p| p.is_finite())
-            .fold(Aabb::EMPTY, |b, p| b.union_point(p.as_vec3()));
-        // 31 bits of the Morton code (10 per axis and one) above the point's index: one u64
-        // to sort.
-        let mut order: Vec<u64> = points
-            .par_iter()
-            .enumerate()
-            .map(|(i, p)| {
-                let code = if p.is_finite() {
-                    morton_code(p.as_vec3(), &bounds) >> 32
-                } else {
-                    u64::MAX >> 33
-                };
-                (code << 32) | i as u64
-            })
-            .collect();
-        order.par_sort_unstable();
+        let order = morton_order(points);
         // Gathered first: read inside the search loop, each point was a cache miss.
         let in_order: Vec<DVec3> = order
             .par_iter()

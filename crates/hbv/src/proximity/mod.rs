@@ -14,6 +14,7 @@ pub mod inside;
 mod node_frame;
 pub mod point_triangle;
 mod point_triangle_lanes;
+mod query_order;
 mod search_lanes;
 mod search_tree;
 mod triangle_enclosure;
