@@ -10,6 +10,7 @@ use super::candidate_grid::{
 use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
 use super::point_triangle_lanes::F64_LANES;
 use super::query_order::morton_order;
+use super::query_points::QueryPoints;
 #[cfg(target_arch = "x86_64")]
 use super::search_lanes::AvxLanes;
 use super::search_lanes::{PortableLanes, SearchLanes};
@@ -295,8 +296,15 @@ impl ClosestPointTree {
     /// [`ClosestPointTree::closest_points`] written column by column into `out`, as array
     /// libraries (NumPy) hold answers, without a list of them in between; a point without an
     /// answer gets NaN, +∞, -1, 0, 0. Panics if a column's length is not the number of points.
-    pub fn closest_points_into(&self, points: &[DVec3], out: ClosestPointColumns<'_>) {
-        let n = points.len();
+    ///
+    /// `points` may be a `[DVec3]` or the rows of an f32 or f64 array read in place
+    /// ([`FlatPoints`](super::FlatPoints)).
+    pub fn closest_points_into<P: QueryPoints + ?Sized>(
+        &self,
+        points: &P,
+        out: ClosestPointColumns<'_>,
+    ) {
+        let n = points.count();
         let ClosestPointColumns {
             point,
             distance,
@@ -313,11 +321,12 @@ impl ClosestPointTree {
             // thread to wake (from Python, 10 points took 76 µs through the pool against 21 µs
             // of work), and sorting a run this short saves less than it costs. The answers do
             // not depend on the order (module notes).
+            let run: Vec<DVec3> = (0..n).map(|i| points.point(i)).collect();
             let mut found = vec![None; n];
             if self.grid.is_some() {
-                self.answer_run(points, |k, answer| found[k] = answer);
+                self.answer_run(&run, |k, answer| found[k] = answer);
             } else {
-                self.search_run(points, &mut found);
+                self.search_run(&run, &mut found);
             }
             for (k, answer) in found.into_iter().enumerate() {
                 write_row(
@@ -336,10 +345,18 @@ impl ClosestPointTree {
             v.par_chunks_mut(Self::RUN),
         );
         if self.grid.is_some() {
-            (columns, points.par_chunks(Self::RUN))
+            let runs = (0..n.div_ceil(Self::RUN)).into_par_iter();
+            (columns, runs)
                 .into_par_iter()
-                .for_each(|((point, distance, prim, u, v), run)| {
-                    self.answer_run(run, |k, found| {
+                .for_each(|((point, distance, prim, u, v), r)| {
+                    // The run's points in f64, on the stack (no batch-sized copy).
+                    let mut run = [DVec3::ZERO; Self::RUN];
+                    let first = r * Self::RUN;
+                    let len = Self::RUN.min(n - first);
+                    for (k, slot) in run[..len].iter_mut().enumerate() {
+                        *slot = points.point(first + k);
+                    }
+                    self.answer_run(&run[..len], |k, found| {
                         write_row(
                             found,
                             k,
@@ -367,14 +384,17 @@ impl ClosestPointTree {
     /// The batch's searches in Morton order (module notes of
     /// [`ClosestPointTree::closest_points`]): the sort keys (`code << 32 | index`, ascending)
     /// and the answers in that order.
-    fn search_in_morton_order(&self, points: &[DVec3]) -> (Vec<u64>, Vec<Option<ClosestPoint>>) {
+    fn search_in_morton_order<P: QueryPoints + ?Sized>(
+        &self,
+        points: &P,
+    ) -> (Vec<u64>, Vec<Option<ClosestPoint>>) {
         let order = morton_order(points);
         // Gathered first: read inside the search loop, each point was a cache miss.
         let in_order: Vec<DVec3> = order
             .par_iter()
-            .map(|&key| points[key as u32 as usize])
+            .map(|&key| points.point(key as u32 as usize))
             .collect();
-        let mut sorted = vec![None; points.len()];
+        let mut sorted = vec![None; points.count()];
         sorted
             .par_chunks_mut(Self::RUN)
             .zip(in_order.par_chunks(Self::RUN))

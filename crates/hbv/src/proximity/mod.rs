@@ -15,6 +15,7 @@ mod node_frame;
 pub mod point_triangle;
 mod point_triangle_lanes;
 mod query_order;
+mod query_points;
 mod search_lanes;
 mod search_tree;
 mod triangle_enclosure;
@@ -26,4 +27,5 @@ pub use closest_point::{
 };
 pub use inside::contains;
 pub use point_triangle::{closest_point_on_triangle, TrianglePoint};
+pub use query_points::{FlatPoints, QueryPoints};
 pub use search_tree::SearchTreeConfig;

@@ -12,22 +12,27 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::query_points::QueryPoints;
+
 /// Bits of the code per axis.
 const BITS: u32 = 10;
 
 /// The points' keys `code << 32 | index`, in Morton order (ascending code, then index).
-pub(super) fn morton_order(points: &[DVec3]) -> Vec<u64> {
+pub(super) fn morton_order<P: QueryPoints + ?Sized>(points: &P) -> Vec<u64> {
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    for p in points.iter().filter(|p| p.is_finite()) {
-        lo = lo.min(*p);
-        hi = hi.max(*p);
+    for i in 0..points.count() {
+        let p = points.point(i);
+        if p.is_finite() {
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
     }
     let cells = (1u32 << BITS) as f64;
     let scale = cells / (hi - lo).max(DVec3::splat(f64::MIN_POSITIVE));
-    let keys: Vec<u64> = points
-        .par_iter()
-        .enumerate()
-        .map(|(i, &p)| {
+    let keys: Vec<u64> = (0..points.count())
+        .into_par_iter()
+        .map(|i| {
+            let p = points.point(i);
             let code = if p.is_finite() {
                 let q = ((p - lo) * scale).clamp(DVec3::ZERO, DVec3::splat(cells - 1.0));
                 (spread(q.x as u32) << 2) | (spread(q.y as u32) << 1) | spread(q.z as u32)
@@ -101,7 +106,7 @@ mod tests {
         points[17] = DVec3::new(f64::NAN, 0.0, 0.0);
         points[4000] = DVec3::splat(f64::INFINITY);
         points.extend(points.clone());
-        let keys = morton_order(&points);
+        let keys = morton_order(points.as_slice());
         let mut sorted = keys.clone();
         sorted.sort_unstable();
         assert_eq!(keys, sorted);
@@ -109,6 +114,6 @@ mod tests {
         indices.sort_unstable();
         assert!(indices.iter().enumerate().all(|(i, &j)| i as u32 == j));
         assert_eq!(keys[keys.len() - 1] >> 32, (1 << 30) - 1);
-        assert!(morton_order(&[]).is_empty());
+        assert!(morton_order::<[DVec3]>(&[]).is_empty());
     }
 }
