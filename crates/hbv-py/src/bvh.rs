@@ -9,9 +9,9 @@ use hbv::bvh::file::BvhFile;
 use hbv::bvh::layout::Wide8Layout;
 use hbv::bvh::{expected_tests, sah_cost, BuildTree, SahWeights};
 use hbv::glam::DVec3;
-use hbv::proximity::{ClosestPointColumns, ClosestPointTree};
+use hbv::proximity::{ClosestPointColumns, ClosestPointTree, FlatPoints};
 use hbv::{Accelerator, TriangleMesh};
-use numpy::{IntoPyArray, PyArray1, PyArrayMethods};
+use numpy::{IntoPyArray, PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
@@ -51,18 +51,27 @@ pub struct PyBvh {
     settings: String,
 }
 
-/// Query points as f64 `(x, y, z)`: float32 or float64 input, shape (N, 3).
-fn read_points(obj: &Bound<'_, PyAny>) -> PyResult<Vec<DVec3>> {
-    // C-ordered float32 or float64 (N, 3) arrays, the common case, are read in place: one pass,
-    // no float64 copy made by NumPy first.
+/// Query points as given: a C-ordered float32 or float64 (N, 3) array, borrowed and read in
+/// place (no copy: a fresh batch-sized vector was faulted in page by page on every call), or
+/// any other float or integer (N, 3) array converted to f64 points.
+enum PointsIn<'py> {
+    F32(numpy::PyReadonlyArray2<'py, f32>),
+    F64(numpy::PyReadonlyArray2<'py, f64>),
+    Converted(Vec<DVec3>),
+}
+
+/// Query points of shape (N, 3) (see [`PointsIn`]).
+fn read_points<'py>(obj: &Bound<'py, PyAny>) -> PyResult<PointsIn<'py>> {
     if let Ok(a) = obj.cast::<numpy::PyArray2<f32>>() {
-        if let Some(points) = contiguous_points(&a.readonly().as_array()) {
-            return Ok(points);
+        let a = a.readonly();
+        if a.as_array().shape()[1] == 3 && a.is_c_contiguous() {
+            return Ok(PointsIn::F32(a));
         }
     }
     if let Ok(a) = obj.cast::<numpy::PyArray2<f64>>() {
-        if let Some(points) = contiguous_points(&a.readonly().as_array()) {
-            return Ok(points);
+        let a = a.readonly();
+        if a.as_array().shape()[1] == 3 && a.is_c_contiguous() {
+            return Ok(PointsIn::F64(a));
         }
     }
     let array = obj.py().import("numpy")?.call_method1("asarray", (obj,))?;
@@ -73,11 +82,12 @@ fn read_points(obj: &Bound<'_, PyAny>) -> PyResult<Vec<DVec3>> {
             let a = a.readonly();
             let view = a.as_array();
             if view.shape()[1] == 3 {
-                return Ok(view
-                    .rows()
-                    .into_iter()
-                    .map(|r| DVec3::new(r[0], r[1], r[2]))
-                    .collect());
+                return Ok(PointsIn::Converted(
+                    view.rows()
+                        .into_iter()
+                        .map(|r| DVec3::new(r[0], r[1], r[2]))
+                        .collect(),
+                ));
             }
         }
     }
@@ -86,21 +96,6 @@ fn read_points(obj: &Bound<'_, PyAny>) -> PyResult<Vec<DVec3>> {
     Err(PyTypeError::new_err(
         "points: expected a float array of shape (N, 3)",
     ))
-}
-
-/// The rows of a C-ordered (N, 3) array as f64 points; `None` for another shape or order.
-fn contiguous_points<T: Copy + Into<f64>>(
-    view: &numpy::ndarray::ArrayView2<'_, T>,
-) -> Option<Vec<DVec3>> {
-    if view.shape()[1] != 3 {
-        return None;
-    }
-    let flat = view.as_slice()?;
-    Some(
-        flat.chunks_exact(3)
-            .map(|r| DVec3::new(r[0].into(), r[1].into(), r[2].into()))
-            .collect(),
-    )
 }
 
 impl PyBvh {
@@ -299,7 +294,15 @@ impl PyBvh {
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let points = read_points(points)?;
-        let n = points.len();
+        // Read in place where the array allows (`PointsIn`); the borrows live until the end.
+        let (f32_rows, f64_rows, converted) = match &points {
+            PointsIn::F32(a) => (a.as_slice().ok(), None, None),
+            PointsIn::F64(a) => (None, a.as_slice().ok(), None),
+            PointsIn::Converted(v) => (None, None, Some(v.as_slice())),
+        };
+        let n = f32_rows.map_or(0, |r| r.len() / 3)
+            + f64_rows.map_or(0, |r| r.len() / 3)
+            + converted.map_or(0, |v| v.len());
         let (mut point, mut distance) = (vec![[0.0f64; 3]; n], vec![0.0f64; n]);
         let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0f64; n], vec![0.0f64; n]);
         py.detach(|| {
@@ -311,7 +314,14 @@ impl PyBvh {
                     u: &mut u,
                     v: &mut v,
                 };
-                self.closest_tree().closest_points_into(&points, columns)
+                let tree = self.closest_tree();
+                if let Some(rows) = f32_rows.and_then(FlatPoints::new) {
+                    tree.closest_points_into(&rows, columns)
+                } else if let Some(rows) = f64_rows.and_then(FlatPoints::new) {
+                    tree.closest_points_into(&rows, columns)
+                } else {
+                    tree.closest_points_into(converted.unwrap_or(&[]), columns)
+                }
             };
             // One run of points is answered on the calling thread whatever `threads` says
             // (`closest_points_into`): no pool to hand it to.

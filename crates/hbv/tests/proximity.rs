@@ -11,7 +11,7 @@ use hbv::glam::{DVec3, Vec3};
 use hbv::mesh::procedural::{icosphere, torus};
 use hbv::proximity::{
     closest_point_brute_force, contains, CandidateGridConfig, ClosestPointColumns,
-    ClosestPointTree, SearchTally, SearchTreeConfig,
+    ClosestPointTree, FlatPoints, QueryPoints, SearchTally, SearchTreeConfig,
 };
 use hbv::{BruteForce, TriangleMesh};
 use proptest::prelude::*;
@@ -149,7 +149,7 @@ fn assert_closest_points_agree_with(
         }
         // The column form: the same answers, NaN, +inf, -1, 0, 0 for none (compared as bits:
         // NaN rows must match too).
-        let rows = column_rows(&search, &as_f64);
+        let rows = column_rows(&search, as_f64.as_slice());
         for (i, &p) in as_f64.iter().enumerate() {
             let want = match closest_point_brute_force(mesh, p) {
                 Some(c) => (c.point.to_array(), c.distance, c.prim as i64, c.u, c.v),
@@ -174,8 +174,33 @@ fn assert_closest_points_agree_with(
                 .take(ClosestPointTree::RUN + 1 + n)
                 .copied()
                 .collect();
-            for (j, row) in column_rows(&search, &long).into_iter().enumerate() {
+            for (j, row) in column_rows(&search, long.as_slice())
+                .into_iter()
+                .enumerate()
+            {
                 prop_assert_eq!(row, rows[j % n], "{} long batch: row {}", name, j);
+            }
+            // Read in place from the flat rows of f32 and f64 arrays (as from NumPy), one run
+            // and several: the same rows.
+            let flat32: Vec<f32> = long.iter().flat_map(|p| p.as_vec3().to_array()).collect();
+            let flat64: Vec<f64> = long.iter().flat_map(|p| p.to_array()).collect();
+            for (form, got) in [
+                (
+                    "f32",
+                    column_rows(&search, &FlatPoints::new(&flat32).unwrap()),
+                ),
+                (
+                    "f64",
+                    column_rows(&search, &FlatPoints::new(&flat64).unwrap()),
+                ),
+                (
+                    "f32 run",
+                    column_rows(&search, &FlatPoints::new(&flat32[..3 * n]).unwrap()),
+                ),
+            ] {
+                for (j, row) in got.into_iter().enumerate() {
+                    prop_assert_eq!(row, rows[j % n], "{} {} rows: row {}", name, form, j);
+                }
             }
         }
     }
@@ -196,8 +221,8 @@ fn row_bits((q, d, k, u, v): ([f64; 3], f64, i64, f64, f64)) -> RowBits {
 }
 
 /// `search.closest_points_into(points)`, row by row.
-fn column_rows(search: &ClosestPointTree, points: &[DVec3]) -> Vec<RowBits> {
-    let n = points.len();
+fn column_rows<P: QueryPoints + ?Sized>(search: &ClosestPointTree, points: &P) -> Vec<RowBits> {
+    let n = points.count();
     let (mut point, mut distance) = (vec![[0.0; 3]; n], vec![0.0; n]);
     let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0; n], vec![0.0; n]);
     search.closest_points_into(

@@ -3,7 +3,7 @@
 //!
 //! | query | file | how |
 //! | --- | --- | --- |
-//! | nearest surface point | [`closest_point`] | branch and bound over an 8-child BVH (`search_tree`): conservative f32 bounds prune nodes (point–box, `box_bound`; near the leaves in a frame facing the surface, `node_frame`) and single triangles (their enclosing slab, cylinder and edge half-spaces: `triangle_enclosure`, `triangle_packet`), nearest child first; [`point_triangle`] decides in f64 |
+//! | nearest surface point | [`closest_point`] | branch and bound over an 8-child BVH (`search_tree`): conservative f32 bounds prune nodes (point–box, `box_bound`; near the leaves in a frame facing the surface, `node_frame`) and single triangles (their enclosing slab, cylinder and edge half-spaces: `triangle_enclosure`, `triangle_packet`), nearest child first; [`point_triangle`] decides in f64 (`point_triangle_lanes`: four triangles side by side, branch-free, the same bits; `search_lanes`: the AVX and portable forms of the search's lane steps) |
 //! | inside a closed mesh | [`inside`] | majority of three ray parity counts, each from one all-hits traversal |
 
 mod box_bound;
@@ -13,6 +13,10 @@ mod directed_rounding;
 pub mod inside;
 mod node_frame;
 pub mod point_triangle;
+mod point_triangle_lanes;
+mod query_order;
+mod query_points;
+mod search_lanes;
 mod search_tree;
 mod triangle_enclosure;
 mod triangle_packet;
@@ -23,4 +27,5 @@ pub use closest_point::{
 };
 pub use inside::contains;
 pub use point_triangle::{closest_point_on_triangle, TrianglePoint};
+pub use query_points::{FlatPoints, QueryPoints};
 pub use search_tree::SearchTreeConfig;

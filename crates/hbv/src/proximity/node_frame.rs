@@ -84,8 +84,75 @@ impl NodeFrame {
     /// `2⁻²⁰ (Σ |r_ji l_i| + |fl(r_j·l)|) + (1 + 2⁻²⁰) Σ |r_ji| (hi_i - lo_i)`, which also covers
     /// its own rounding and that of the final subtraction and addition. A coordinate whose bracket
     /// is not finite (points near the f32 limit) becomes `(-∞, +∞)`: no bound.
+    ///
+    /// On x86-64 in SSE intrinsics (the baseline: no detection), the portable form's operations
+    /// in the same order, so the same bits; LLVM left the portable form mostly scalar (about
+    /// 100 instructions a node, 800 of the bunny's 6,100 per query).
     #[inline(always)]
     pub fn bracket(&self, p: &PointBracket) -> PointBracket {
+        #[cfg(target_arch = "x86_64")]
+        return self.bracket_sse(p);
+        #[cfg(not(target_arch = "x86_64"))]
+        return self.bracket_portable(p);
+    }
+
+    /// [`NodeFrame::bracket`] in SSE, four lanes (the rows; lane 3 is 0) at once.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    fn bracket_sse(&self, p: &PointBracket) -> PointBracket {
+        use std::arch::x86_64::*;
+        // SAFETY: SSE is part of the x86-64 baseline; the loads read the four f32 of a
+        // column, the stores write four f32 arrays.
+        unsafe {
+            let sign = _mm_set1_ps(-0.0);
+            let mut value = _mm_setzero_ps();
+            let mut magnitude = _mm_setzero_ps();
+            let mut spread = _mm_setzero_ps();
+            for i in 0..3 {
+                let column = _mm_loadu_ps(self.columns[i].as_ptr());
+                let term = _mm_mul_ps(column, _mm_set1_ps(p.lo[i]));
+                value = _mm_add_ps(value, term);
+                magnitude = _mm_add_ps(magnitude, _mm_andnot_ps(sign, term));
+                let width = _mm_set1_ps(p.hi[i] - p.lo[i]);
+                spread = _mm_add_ps(spread, _mm_mul_ps(_mm_andnot_ps(sign, column), width));
+            }
+            let margin = _mm_add_ps(
+                _mm_add_ps(
+                    _mm_mul_ps(
+                        _mm_add_ps(magnitude, _mm_andnot_ps(sign, value)),
+                        _mm_set1_ps(1.0 / 1_048_576.0),
+                    ),
+                    _mm_mul_ps(spread, _mm_set1_ps(1.0 + 1.0 / 1_048_576.0)),
+                ),
+                _mm_set1_ps(f32::MIN_POSITIVE),
+            );
+            let (lo, hi) = (_mm_sub_ps(value, margin), _mm_add_ps(value, margin));
+            let finite = _mm_and_ps(
+                _mm_cmpgt_ps(lo, _mm_set1_ps(f32::NEG_INFINITY)),
+                _mm_cmplt_ps(hi, _mm_set1_ps(f32::INFINITY)),
+            );
+            let lo = _mm_or_ps(
+                _mm_and_ps(finite, lo),
+                _mm_andnot_ps(finite, _mm_set1_ps(f32::NEG_INFINITY)),
+            );
+            let hi = _mm_or_ps(
+                _mm_and_ps(finite, hi),
+                _mm_andnot_ps(finite, _mm_set1_ps(f32::INFINITY)),
+            );
+            let (mut lo4, mut hi4) = ([0.0f32; 4], [0.0f32; 4]);
+            _mm_storeu_ps(lo4.as_mut_ptr(), lo);
+            _mm_storeu_ps(hi4.as_mut_ptr(), hi);
+            PointBracket {
+                lo: [lo4[0], lo4[1], lo4[2]],
+                hi: [hi4[0], hi4[1], hi4[2]],
+            }
+        }
+    }
+
+    /// [`NodeFrame::bracket`] lane by lane in plain Rust (other CPUs; the SSE form's reference).
+    #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
+    #[inline(always)]
+    fn bracket_portable(&self, p: &PointBracket) -> PointBracket {
         // Lane `j` is row `j`: the same operations in the same order as row by row.
         let mut value = [0.0f32; 4];
         let mut magnitude = [0.0f32; 4];
@@ -171,6 +238,30 @@ mod tests {
                     // 3 above the patch: the bound is nearly 9.
                     assert!(bound > 8.9, "{bound}");
                 }
+            }
+        }
+    }
+
+    /// The SSE bracket is the portable one, bit for bit, at every scale (huge points included).
+    #[test]
+    fn sse_bracket_is_the_portable_bracket() {
+        for n in [
+            DVec3::new(0.3, -0.2, 0.9),
+            DVec3::new(-1e-3, 1.0, 1e-4),
+            DVec3::new(1.0, 2.0, 2.0),
+        ] {
+            let frame = NodeFrame::facing(n).unwrap();
+            for p in [
+                DVec3::new(0.1, -0.7, 3.3),
+                DVec3::new(1e6 + 0.1, -2e6, 0.3),
+                DVec3::new(-1e-30, 1e-20, 0.0),
+                DVec3::splat(3e38),
+                DVec3::new(-3.4e38, 1.0, 2e38),
+            ] {
+                let bracket = PointBracket::new(p);
+                let (a, b) = (frame.bracket(&bracket), frame.bracket_portable(&bracket));
+                let bits = |x: [f32; 3]| x.map(f32::to_bits);
+                assert_eq!((bits(a.lo), bits(a.hi)), (bits(b.lo), bits(b.hi)), "{p:?}");
             }
         }
     }
