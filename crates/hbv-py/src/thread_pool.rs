@@ -1,10 +1,10 @@
 //! `threads=`: how many threads a query uses. `None`: one per core; `1`: the calling thread
 //! itself, with no hand-off to a pool thread (on a busy machine each hand-off waits for the
 //! scheduler, which can cost more than a small batch); `n`: `n` threads. Row-by-row queries
-//! ([`fill_rows`]) run on the calling thread and `n - 1` threads of a pool; the others
+//! ([`fill_rows`]) run on the calling thread and a pool of `n - 1` threads; the others
 //! ([`run_on_threads`]: `closest_point`'s sorted batches, `intersect_all`) on a pool of `n`
-//! threads (the global rayon pool for `None`) while the calling thread waits. A pool of `n` is
-//! started on first use and kept for later calls.
+//! threads (the global rayon pool for `None`) while the calling thread waits. A pool of `n`
+//! threads is started on first use and kept for later calls.
 
 use std::sync::{Arc, Mutex};
 
@@ -135,13 +135,13 @@ impl<A: Rows, B: Rows> Rows for (A, B) {
 
 /// Fills `rows` with `fill(first_row, rows)`: on the calling thread alone for `threads = Some(1)`
 /// or at most [`SERIAL_ROWS`] rows; otherwise cut into runs of [`GRAIN`] rows that the calling
-/// thread and `threads - 1` of the pool's threads (every core but one for `None`) take in turn.
+/// thread and a pool of `threads - 1` threads (one per core but one for `None`) take in turn.
 ///
 /// The calling thread starts on the first run at once, and the pool's threads join as they
 /// wake: on a virtual machine a sleeping thread can take up to a millisecond to run, and the
-/// caller would otherwise wait for it with nothing done. One thread fewer in the pool keeps
-/// one thread per core (with the caller working too, a full pool would share a core between
-/// two threads).
+/// caller would otherwise wait for it with nothing done. The pool has one thread fewer than
+/// the count, so that with the caller working too there is one thread per core, and no idle
+/// pool thread looking for work beside them.
 pub fn fill_rows<R: Rows>(
     threads: Option<ThreadCount>,
     rows: R,
@@ -162,14 +162,12 @@ pub fn fill_rows<R: Rows>(
             None => break,
         }
     };
-    match threads {
-        Some(n) => {
-            pool_of(n.get())?.in_place_scope(|scope| beside_caller(scope, n.get() - 1, &take_runs))
-        }
-        None => rayon::in_place_scope(|scope| {
-            beside_caller(scope, rayon::current_num_threads() - 1, &take_runs)
-        }),
+    let helpers = threads.map_or_else(rayon::current_num_threads, ThreadCount::get) - 1;
+    if helpers == 0 {
+        take_runs();
+        return Ok(());
     }
+    pool_of(helpers)?.in_place_scope(|scope| beside_caller(scope, helpers, &take_runs));
     Ok(())
 }
 
