@@ -18,7 +18,7 @@ pub fn morton_code(p: Vec3, bounds: &Aabb) -> u64 {
 }
 
 /// Spreads the low 21 bits of `x` so that bit `i` moves to bit `3i`.
-fn spread_bits(x: u64) -> u64 {
+pub(crate) fn spread_bits(x: u64) -> u64 {
     let mut x = x & 0x1f_ffff;
     x = (x | (x << 32)) & 0x001f_0000_0000_ffff;
     x = (x | (x << 16)) & 0x001f_0000_ff00_00ff;

@@ -13,6 +13,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::query_points::QueryPoints;
+use crate::bvh::morton::spread_bits;
 
 /// Bits of the code per axis.
 const BITS: u32 = 10;
@@ -35,25 +36,16 @@ pub(super) fn morton_order<P: QueryPoints + ?Sized>(points: &P) -> Vec<u64> {
             let p = points.point(i);
             let code = if p.is_finite() {
                 let q = ((p - lo) * scale).clamp(DVec3::ZERO, DVec3::splat(cells - 1.0));
-                (spread(q.x as u32) << 2) | (spread(q.y as u32) << 1) | spread(q.z as u32)
+                (spread_bits(q.x as u64) << 2)
+                    | (spread_bits(q.y as u64) << 1)
+                    | spread_bits(q.z as u64)
             } else {
                 (1 << (3 * BITS)) - 1
             };
-            ((code as u64) << 32) | i as u64
+            (code << 32) | i as u64
         })
         .collect();
     radix_sort_by_code(keys)
-}
-
-/// Spreads the low 10 bits of `x` so that bit `i` moves to bit `3i`.
-#[inline]
-fn spread(x: u32) -> u32 {
-    let mut x = x & 0x3ff;
-    x = (x | (x << 16)) & 0x0300_00ff;
-    x = (x | (x << 8)) & 0x0300_f00f;
-    x = (x | (x << 4)) & 0x030c_30c3;
-    x = (x | (x << 2)) & 0x0924_9249;
-    x
 }
 
 /// Sorts keys by their 30-bit code (bits 32–61), stably: three passes of a 10-bit digit.
@@ -85,13 +77,6 @@ fn radix_sort_by_code(mut keys: Vec<u64>) -> Vec<u64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn spread_moves_each_bit_to_three_times_its_position() {
-        for i in 0..BITS {
-            assert_eq!(spread(1 << i), 1 << (3 * i));
-        }
-    }
 
     /// The radix sort gives the keys in ascending (code, index) order, and every index once;
     /// non-finite points come last.
