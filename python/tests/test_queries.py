@@ -132,6 +132,15 @@ def test_closest_point_reads_every_array_layout_alike():
         got = bvh.closest_point(layout)
         for key in want:
             np.testing.assert_array_equal(got[key], want[key])
+    # float64 points keep their precision whatever the layout (a copy is float64 too).
+    p64 = rng.uniform(-2, 2, (300, 3))
+    want = bvh.closest_point(p64)
+    wide64 = np.zeros((300, 6))
+    wide64[:, ::2] = p64
+    for layout in [np.asfortranarray(p64), wide64[:, ::2], p64.tolist()]:
+        got = bvh.closest_point(layout)
+        for key in want:
+            np.testing.assert_array_equal(got[key], want[key])
     whole = np.array([[1, 2, 0], [0, 0, 3]], dtype=np.int32)
     np.testing.assert_array_equal(bvh.closest_point(whole)["prim"], bvh.closest_point(whole.astype(np.float64))["prim"])
     with pytest.raises((TypeError, ValueError)):

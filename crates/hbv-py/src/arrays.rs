@@ -9,12 +9,13 @@ use numpy::{
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 
-/// The values of a float argument: the caller's float32 or float64 array, borrowed, or a
-/// float32 copy.
+/// The values of a float argument: the caller's float32 or float64 array, borrowed, or a copy
+/// in the same precision (float64 for integers).
 pub enum Floats<'py> {
     Borrowed(PyReadonlyArrayDyn<'py, f32>),
     BorrowedF64(PyReadonlyArrayDyn<'py, f64>),
     Owned(Vec<f32>),
+    OwnedF64(Vec<f64>),
 }
 
 impl Floats<'_> {
@@ -24,12 +25,13 @@ impl Floats<'_> {
             Floats::Borrowed(a) => FloatSlice::F32(a.as_slice().expect("checked contiguous")),
             Floats::BorrowedF64(a) => FloatSlice::F64(a.as_slice().expect("checked contiguous")),
             Floats::Owned(v) => FloatSlice::F32(v),
+            Floats::OwnedF64(v) => FloatSlice::F64(v),
         }
     }
 }
 
-/// Float values in place, float32 or float64; read as float32, each value rounded to nearest
-/// when it is read. Converting a float64 array up front took longer than tracing a camera ray
+/// Float values in place, float32 or float64. Ray queries read them as float32, each value
+/// rounded to nearest when it is read; `closest_point` reads them exactly, as float64. Converting a float64 array up front took longer than tracing a camera ray
 /// (ndarray's n-dimensional iterator: 9 ns a ray), and ran on one thread with the GIL
 /// held; read in place, the conversion is spread over the query's threads.
 #[derive(Clone, Copy)]
@@ -120,8 +122,8 @@ fn shape_text(shape: &[usize]) -> String {
 }
 
 /// Reads a float array of shape `(N, 3)` (or `(N,)` with `columns = None`); `rows` fixes N.
-/// C-contiguous float32 and float64 arrays are borrowed; strided and integer arrays are
-/// converted to float32.
+/// C-contiguous float32 and float64 arrays are borrowed; strided ones are copied in their own
+/// precision, integer arrays (and lists of them) as float64.
 pub fn float_array<'py>(
     name: &str,
     obj: &Bound<'py, PyAny>,
@@ -175,7 +177,7 @@ pub fn float_array<'py>(
         if a.is_c_contiguous() {
             Floats::BorrowedF64(a)
         } else {
-            Floats::Owned(a.as_array().iter().map(|&x| x as f32).collect())
+            Floats::OwnedF64(a.as_array().iter().copied().collect())
         }
     } else {
         return Err(PyTypeError::new_err(format!(

@@ -8,15 +8,14 @@ use std::time::Instant;
 use hbv::bvh::file::BvhFile;
 use hbv::bvh::layout::Wide8Layout;
 use hbv::bvh::{expected_tests, sah_cost, BuildTree, SahWeights};
-use hbv::glam::DVec3;
 use hbv::proximity::{ClosestPointColumns, ClosestPointTree, FlatPoints};
 use hbv::{Accelerator, TriangleMesh};
-use numpy::{IntoPyArray, PyArray1, PyArrayMethods, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyArray1, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use crate::arrays::float_array;
+use crate::arrays::{float_array, FloatSlice};
 use crate::build_options::BuildOptions;
 use crate::bvh_file::{describe, save};
 use crate::mesh::PyMesh;
@@ -51,51 +50,9 @@ pub struct PyBvh {
     settings: String,
 }
 
-/// Query points as given: a C-ordered float32 or float64 (N, 3) array, borrowed and read in
-/// place (no copy: a fresh batch-sized vector was faulted in page by page on every call), or
-/// any other float or integer (N, 3) array converted to f64 points.
-enum PointsIn<'py> {
-    F32(numpy::PyReadonlyArray2<'py, f32>),
-    F64(numpy::PyReadonlyArray2<'py, f64>),
-    Converted(Vec<DVec3>),
-}
-
-/// Query points of shape (N, 3) (see [`PointsIn`]).
-fn read_points<'py>(obj: &Bound<'py, PyAny>) -> PyResult<PointsIn<'py>> {
-    if let Ok(a) = obj.cast::<numpy::PyArray2<f32>>() {
-        let a = a.readonly();
-        if a.as_array().shape()[1] == 3 && a.is_c_contiguous() {
-            return Ok(PointsIn::F32(a));
-        }
-    }
-    if let Ok(a) = obj.cast::<numpy::PyArray2<f64>>() {
-        let a = a.readonly();
-        if a.as_array().shape()[1] == 3 && a.is_c_contiguous() {
-            return Ok(PointsIn::F64(a));
-        }
-    }
-    let array = obj.py().import("numpy")?.call_method1("asarray", (obj,))?;
-    let kind: String = array.getattr("dtype")?.getattr("kind")?.extract()?;
-    if kind == "f" || kind == "i" || kind == "u" {
-        let as_f64 = array.call_method1("astype", ("float64",))?;
-        if let Ok(a) = as_f64.cast::<numpy::PyArray2<f64>>() {
-            let a = a.readonly();
-            let view = a.as_array();
-            if view.shape()[1] == 3 {
-                return Ok(PointsIn::Converted(
-                    view.rows()
-                        .into_iter()
-                        .map(|r| DVec3::new(r[0], r[1], r[2]))
-                        .collect(),
-                ));
-            }
-        }
-    }
-    // Not a float (N, 3) array: let the common reader word the error.
-    float_array("points", obj, Some(3), None)?;
-    Err(PyTypeError::new_err(
-        "points: expected a float array of shape (N, 3)",
-    ))
+/// The (N, 3) rows of a checked point array.
+fn rows_of<T>(values: &[T]) -> FlatPoints<'_, T> {
+    FlatPoints::new(values).expect("float_array checked the shape (N, 3)")
 }
 
 impl PyBvh {
@@ -293,16 +250,9 @@ impl PyBvh {
         points: &Bound<'py, PyAny>,
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let points = read_points(points)?;
-        // Read in place where the array allows (`PointsIn`); the borrows live until the end.
-        let (f32_rows, f64_rows, converted) = match &points {
-            PointsIn::F32(a) => (a.as_slice().ok(), None, None),
-            PointsIn::F64(a) => (None, a.as_slice().ok(), None),
-            PointsIn::Converted(v) => (None, None, Some(v.as_slice())),
-        };
-        let n = f32_rows.map_or(0, |r| r.len() / 3)
-            + f64_rows.map_or(0, |r| r.len() / 3)
-            + converted.map_or(0, |v| v.len());
+        // Read in place where the array allows, exactly (float64 stays float64).
+        let (points, n) = float_array("points", points, Some(3), None)?;
+        let points = points.values();
         let (mut point, mut distance) = (vec![[0.0f64; 3]; n], vec![0.0f64; n]);
         let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0f64; n], vec![0.0f64; n]);
         py.detach(|| {
@@ -315,12 +265,9 @@ impl PyBvh {
                     v: &mut v,
                 };
                 let tree = self.closest_tree();
-                if let Some(rows) = f32_rows.and_then(FlatPoints::new) {
-                    tree.closest_points_into(&rows, columns)
-                } else if let Some(rows) = f64_rows.and_then(FlatPoints::new) {
-                    tree.closest_points_into(&rows, columns)
-                } else {
-                    tree.closest_points_into(converted.unwrap_or(&[]), columns)
+                match points {
+                    FloatSlice::F32(values) => tree.closest_points_into(&rows_of(values), columns),
+                    FloatSlice::F64(values) => tree.closest_points_into(&rows_of(values), columns),
                 }
             };
             // One run of points is answered on the calling thread whatever `threads` says
