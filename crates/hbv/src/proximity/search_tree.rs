@@ -103,6 +103,7 @@ pub(super) struct SearchTree {
 type SlotBox = ([f32; 3], [f32; 3]);
 
 /// What one slot of a node will become.
+#[derive(Clone)]
 enum Slot {
     /// A build node that stays a node (more triangles than a leaf takes).
     Node(NodeId),
@@ -123,11 +124,14 @@ impl SearchTree {
         let below = triangles_below(tree);
         let leaf_max = config.leaf_triangles.max(1) as u32;
         let mut planned = PacketPlan::default();
+        // Nodes to try a rotated frame for: (node, its slots, their aligned boxes, the slots
+        // given a child), decided in parallel once the shape is known.
+        let mut frame_trials: Vec<(usize, Vec<Slot>, Vec<SlotBox>, u32)> = Vec::new();
         search.nodes.push(QuadNode::EMPTY);
         let mut pending: Vec<(Vec<NodeId>, usize)> = vec![(vec![root], 0)];
         while let Some((members, index)) = pending.pop() {
             let slots = search.slots_of(tree, &below, leaf_max, members);
-            let mut boxes: Vec<SlotBox> = slots
+            let boxes: Vec<SlotBox> = slots
                 .iter()
                 .map(|slot| {
                     let b = slot
@@ -142,12 +146,9 @@ impl SearchTree {
                 .flat_map(|slot| slot.members())
                 .map(|&id| below[id as usize])
                 .sum();
-            if config.rotated_frames && triangles <= FRAME_MAX_TRIANGLES {
-                if let Some((frame, rotated)) = rotated_boxes(tree, mesh, &slots, &boxes) {
-                    search.nodes[index].frame = Some(frame);
-                    boxes = rotated;
-                }
-            }
+            let trial = (config.rotated_frames && triangles <= FRAME_MAX_TRIANGLES)
+                .then(|| (slots.clone(), boxes.clone()));
+            let mut given = 0u32;
             for (k, slot) in slots.into_iter().enumerate() {
                 match slot {
                     Slot::Leaf(id) => {
@@ -158,6 +159,7 @@ impl SearchTree {
                             node.set_bounds(k, boxes[k]);
                             node.child[k] = first;
                             node.triangles[k] = count;
+                            given |= 1 << k;
                         }
                     }
                     Slot::Node(id) => {
@@ -166,6 +168,7 @@ impl SearchTree {
                         let node = &mut search.nodes[index];
                         node.set_bounds(k, boxes[k]);
                         node.child[k] = child as u32;
+                        given |= 1 << k;
                         pending.push((tree.node(id).children().to_vec(), child));
                     }
                     Slot::Group(ids) => {
@@ -174,7 +177,28 @@ impl SearchTree {
                         let node = &mut search.nodes[index];
                         node.set_bounds(k, boxes[k]);
                         node.child[k] = child as u32;
+                        given |= 1 << k;
                         pending.push((ids, child));
+                    }
+                }
+            }
+            if let Some((slots, aligned)) = trial {
+                frame_trials.push((index, slots, aligned, given));
+            }
+        }
+        // Rotated frames, tried for every small node at once; a node that takes one has the
+        // boxes of its given slots replaced by the rotated ones.
+        let frames: Vec<_> = frame_trials
+            .par_iter()
+            .map(|(_, slots, aligned, _)| rotated_boxes(tree, mesh, slots, aligned))
+            .collect();
+        for ((index, _, _, given), frame) in frame_trials.iter().zip(frames) {
+            if let Some((frame, rotated)) = frame {
+                let node = &mut search.nodes[*index];
+                node.frame = Some(frame);
+                for (k, &slot_box) in rotated.iter().enumerate() {
+                    if given >> k & 1 == 1 {
+                        node.set_bounds(k, slot_box);
                     }
                 }
             }
