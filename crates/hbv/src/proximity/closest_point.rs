@@ -161,6 +161,23 @@ struct Best {
     delta: f64,
 }
 
+impl Best {
+    /// Whether a triangle `prim` at computed squared distance `d2` replaces the best so far:
+    /// nearer, or as near with a smaller face id (the brute force's tie rule).
+    #[inline(always)]
+    fn is_beaten_by(&self, d2: f64, prim: u32) -> bool {
+        d2 < self.d2 || (d2 == self.d2 && self.found.is_some_and(|(_, b, _)| prim < b))
+    }
+
+    /// Makes `q` on triangle `prim` (local id `local`), at squared distance `d2`, the best.
+    #[inline(always)]
+    fn record(&mut self, q: TrianglePoint, d2: f64, prim: u32, local: u32) {
+        self.d2 = d2;
+        self.threshold = prune_threshold(d2, self.delta);
+        self.found = Some((q, prim, local));
+    }
+}
+
 impl ClosestPointTree {
     /// Lays out `tree` (built over `mesh` by any builder) for nearest-point search, with
     /// [`SearchTreeConfig::default`].
@@ -647,17 +664,13 @@ impl ClosestPointTree {
         for l in 0..F64_LANES {
             let lane = half * F64_LANES + l;
             let (d2, prim) = (found.distance_squared[l], data.prim[lane]);
-            let closer =
-                d2 < best.d2 || (d2 == best.d2 && best.found.is_some_and(|(_, b, _)| prim < b));
-            if closer {
-                best.d2 = d2;
-                best.threshold = prune_threshold(d2, best.delta);
+            if best.is_beaten_by(d2, prim) {
                 let q = TrianglePoint {
                     point: DVec3::new(found.point[0][l], found.point[1][l], found.point[2][l]),
                     u: found.u[l],
                     v: found.v[l],
                 };
-                best.found = Some((q, prim, (packet * LANES + lane) as u32));
+                best.record(q, d2, prim, (packet * LANES + lane) as u32);
             }
         }
     }
@@ -672,12 +685,8 @@ impl ClosestPointTree {
         let prim = packet.prim[lane];
         let q = closest_point_on_triangle(p, a, b, c);
         let d2 = (p - q.point).length_squared();
-        let closer =
-            d2 < best.d2 || (d2 == best.d2 && best.found.is_some_and(|(_, b, _)| prim < b));
-        if closer {
-            best.d2 = d2;
-            best.threshold = prune_threshold(d2, best.delta);
-            best.found = Some((q, prim, local));
+        if best.is_beaten_by(d2, prim) {
+            best.record(q, d2, prim, local);
         }
     }
 }
