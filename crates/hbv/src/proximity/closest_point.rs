@@ -78,6 +78,21 @@ type ColumnRun<'r> = (
     &'r mut [f64],
 );
 
+/// Points `first..first + len` of `points` (`len` at most a run) in f64, on the stack: no
+/// batch-sized copy.
+#[inline]
+fn run_of<P: QueryPoints + ?Sized>(
+    points: &P,
+    first: usize,
+    len: usize,
+) -> [DVec3; ClosestPointTree::RUN] {
+    let mut run = [DVec3::ZERO; ClosestPointTree::RUN];
+    for (k, slot) in run[..len].iter_mut().enumerate() {
+        *slot = points.point(first + k);
+    }
+    run
+}
+
 /// Writes answer `found` as row `k` of the columns.
 #[inline]
 fn write_row(found: Option<ClosestPoint>, k: usize, (point, distance, prim, u, v): ColumnRun<'_>) {
@@ -338,12 +353,12 @@ impl ClosestPointTree {
             // thread to wake (from Python, 10 points took 76 µs through the pool against 21 µs
             // of work), and sorting a run this short saves less than it costs. The answers do
             // not depend on the order (module notes).
-            let run: Vec<DVec3> = (0..n).map(|i| points.point(i)).collect();
+            let run = run_of(points, 0, n);
             let mut found = vec![None; n];
             if self.grid.is_some() {
-                self.answer_run(&run, |k, answer| found[k] = answer);
+                self.answer_run(&run[..n], |k, answer| found[k] = answer);
             } else {
-                self.search_run(&run, &mut found);
+                self.search_run(&run[..n], &mut found);
             }
             for (k, answer) in found.into_iter().enumerate() {
                 write_row(
@@ -366,13 +381,9 @@ impl ClosestPointTree {
             (columns, runs)
                 .into_par_iter()
                 .for_each(|((point, distance, prim, u, v), r)| {
-                    // The run's points in f64, on the stack (no batch-sized copy).
-                    let mut run = [DVec3::ZERO; Self::RUN];
                     let first = r * Self::RUN;
                     let len = Self::RUN.min(n - first);
-                    for (k, slot) in run[..len].iter_mut().enumerate() {
-                        *slot = points.point(first + k);
-                    }
+                    let run = run_of(points, first, len);
                     self.answer_run(&run[..len], |k, found| {
                         write_row(
                             found,
