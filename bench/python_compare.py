@@ -53,6 +53,7 @@ import argparse
 import json
 import os
 import pathlib
+import resource
 import statistics
 import sys
 import time
@@ -62,6 +63,8 @@ import numpy as np
 import hbv
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
+# The last `time_interleaved` call's page faults per timed call, by contender.
+FAULTS = {}
 
 
 def parse_args():
@@ -140,13 +143,19 @@ def time_interleaved(contenders, repeat):
     """
     results = {name: fn() for name, fn in contenders.items()}
     times = {name: [] for name in contenders}
+    faults = {name: [] for name in contenders}
     for _ in range(repeat):
         for name, fn in contenders.items():
             if name.endswith("_all"):
                 fn()
+            minor = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
             start = time.perf_counter()
             fn()
             times[name].append(time.perf_counter() - start)
+            faults[name].append(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - minor)
+    # Minor page faults of each timed call (median): memory the allocator had handed back to
+    # the kernel and the call touched again, at about 1 µs a page on the benchmark's VM.
+    FAULTS.update({name: statistics.median(f) for name, f in faults.items()})
     return {name: statistics.median(t) for name, t in times.items()}, results
 
 
@@ -199,12 +208,13 @@ def compare_mesh(path, args):
         o3d_prim[o3d_prim == 4294967295] = -1
         rows.append({
             "mesh": path.name, "triangles": len(f), "set": set_name, "rays": len(o),
-            "hbv_build_s": hbv_build, "mrays_per_s": mrays,
+            "hbv_build_s": hbv_build, "mrays_per_s": mrays, "page_faults_per_call": dict(FAULTS),
             "hit_rate": float(ours["hit"].mean()),
             "same_prim_as_embree": float((ours["prim"] == emb_prim).mean()),
             "same_prim_as_open3d": float((ours["prim"] == o3d_prim).mean()),
         })
-        print(f"{path.name} {set_name}: " + ", ".join(f"{k} {x:.2f}" for k, x in mrays.items()),
+        print(f"{path.name} {set_name}: " + ", ".join(f"{k} {x:.2f}" for k, x in mrays.items())
+              + "; page faults per call: " + ", ".join(f"{k} {x:g}" for k, x in FAULTS.items()),
               file=sys.stderr)
 
     points = query_points(v, args.points, args.seed)
@@ -226,6 +236,7 @@ def compare_mesh(path, args):
     closest = {
         "mesh": path.name, "triangles": len(f), "points": len(points),
         "mqueries_per_s": {name: len(points) / s / 1e6 for name, s in seconds.items()},
+        "page_faults_per_call": dict(FAULTS),
         "max_distance_difference_over_diagonal": float(np.abs(ours - theirs).max() / diag),
         # Points whose nearest point lies inside a face (not on an edge or vertex, where the
         # triangles sharing it tie: hbv takes the smallest id, Open3D any) and whose triangle is
@@ -237,7 +248,9 @@ def compare_mesh(path, args):
                                        and np.array_equal(ours, answers["hbv_all"]["distance"])),
     }
     print(f"{path.name} closest point: " + ", ".join(
-        f"{k} {x:.3f}" for k, x in closest["mqueries_per_s"].items()), file=sys.stderr)
+        f"{k} {x:.3f}" for k, x in closest["mqueries_per_s"].items())
+        + "; page faults per call: " + ", ".join(f"{k} {x:g}" for k, x in FAULTS.items()),
+        file=sys.stderr)
     return rows, closest, others, cores
 
 
@@ -262,6 +275,7 @@ def compare_other_queries(path, bvh, tm, tm_embree, o, d, points, repeat):
     row = {
         "mesh": path.name, "triangles": len(tm.faces), "rays": len(o), "points": len(points),
         "mqueries_per_s": {name: size(name) / s / 1e6 for name, s in seconds.items()},
+        "page_faults_per_call": dict(FAULTS),
         # trimesh's re-cast rays can miss or repeat a hit at a shared edge; hbv's answers are
         # checked against brute force in its tests. These say how often the two agree.
         "same_count_as_trimesh": float((answers["count_hbv_1"] == answers["count_trimesh_1"]).mean()),

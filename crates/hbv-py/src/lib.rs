@@ -2,10 +2,12 @@
 //!
 //! A thin layer: NumPy arrays are checked and read in place (`arrays.rs`), trees are built with
 //! the options of the command line (`build_options.rs`), and every query is the library's own,
-//! run on all cores with the GIL released (`bvh.rs`, `thread_pool.rs`).
+//! run on all cores with the GIL released (`bvh.rs`, `thread_pool.rs`). Answer arrays are Rust
+//! vectors handed to NumPy, from an allocator that keeps freed pages (`allocator.rs`).
 
 use pyo3::prelude::*;
 
+mod allocator;
 mod arrays;
 mod build_options;
 mod bvh;
@@ -17,6 +19,7 @@ mod thread_pool;
 
 #[pymodule]
 fn _hbv(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    allocator::configure();
     m.add_class::<mesh::PyMesh>()?;
     m.add_class::<bvh::PyBvh>()?;
     m.add_class::<grid::PyGrid>()?;
