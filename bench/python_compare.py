@@ -155,6 +155,7 @@ def time_interleaved(contenders, repeat):
             faults[name].append(resource.getrusage(resource.RUSAGE_SELF).ru_minflt - minor)
     # Minor page faults of each timed call (median): memory the allocator had handed back to
     # the kernel and the call touched again, at about 1 µs a page on the benchmark's VM.
+    FAULTS.clear()
     FAULTS.update({name: statistics.median(f) for name, f in faults.items()})
     return {name: statistics.median(t) for name, t in times.items()}, results
 
