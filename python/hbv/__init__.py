@@ -6,7 +6,8 @@ or points at a time (all cores, GIL released):
 - ``intersect``: the closest hit of each ray (``hit``, ``t``, ``prim``, ``u``, ``v``);
 - ``occluded``: whether anything lies along each ray;
 - ``intersect_all`` / ``count``: every hit along each ray, in one traversal;
-- ``contains``: whether points lie inside a closed mesh;
+- ``contains``: whether points lie inside a closed mesh (``Mesh.is_closed``; a RuntimeWarning
+  otherwise);
 - ``closest_point``: the nearest surface point, its distance, triangle and barycentrics.
 
 Answers are exact (watertight ray/triangle test, checked against brute force) and deterministic

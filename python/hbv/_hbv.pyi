@@ -38,6 +38,12 @@ class Mesh:
     @property
     def degenerate_count(self) -> int: ...
     @property
+    def open_edges(self) -> int:
+        """Edges shared by an odd number of triangles (vertices compared by position); 0 if closed."""
+    @property
+    def is_closed(self) -> bool:
+        """No open edges: the mesh bounds a volume and ``contains`` is defined."""
+    @property
     def bounds(self) -> Tuple[Tuple[float, float, float], Tuple[float, float, float]]: ...
     def __len__(self) -> int: ...
 

@@ -15,6 +15,8 @@ def assert_same_hits(got, want, what):
         np.testing.assert_array_equal(got[k], want[k], err_msg=f"{what} {k}")
 
 
+# The soup is open (contains warns): the two structures must agree even where inside is undefined.
+@pytest.mark.filterwarnings("ignore:contains. the mesh is not closed:RuntimeWarning")
 @pytest.mark.parametrize("lam", [None, 0.3, 1.0, 6.0])
 def test_grid_answers_what_the_bvh_answers(triangle_soup, sphere, lam):
     for mesh, _, _ in [triangle_soup, sphere]:

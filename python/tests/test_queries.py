@@ -96,6 +96,48 @@ def test_contains_on_grid_points_of_a_cube():
     np.testing.assert_array_equal(bvh.contains(points)[off], m[off] < 1.0)
 
 
+CUBE_V = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+CUBE_F = np.array([[0, 1, 3], [0, 3, 2], [4, 6, 7], [4, 7, 5], [0, 4, 5], [0, 5, 1],
+                   [2, 3, 7], [2, 7, 6], [0, 2, 6], [0, 6, 4], [1, 5, 7], [1, 7, 3]])
+
+
+def test_open_edges_count_holes_by_position(sphere):
+    mesh, v, f = sphere
+    assert mesh.open_edges == 0 and mesh.is_closed
+    cube = hbv.Mesh(CUBE_V, CUBE_F)
+    assert cube.open_edges == 0 and cube.is_closed
+    # One face (two triangles) gone: its square rim is open.
+    holed = hbv.Mesh(CUBE_V, CUBE_F[2:])
+    assert holed.open_edges == 4 and not holed.is_closed
+    # Every triangle with its own three corners (as files with per-face normals have):
+    # vertices are compared by position, so the cube is still closed.
+    split = hbv.Mesh(CUBE_V[CUBE_F.ravel()], np.arange(36).reshape(12, 3))
+    assert len(split.vertices) == 36 and split.is_closed
+    # Degenerate triangles are never crossed, and do not open a mesh.
+    assert hbv.Mesh(CUBE_V, np.vstack([CUBE_F, [[0, 1, 1]]])).is_closed
+    assert hbv.Mesh(np.zeros((0, 3)), np.zeros((0, 3), int)).is_closed
+
+
+def test_contains_warns_on_open_meshes_only(sphere):
+    import warnings
+
+    points = np.array([[0.0, 0.0, 0.0], [3.0, 0.0, 0.0]])
+    closed = hbv.BVH(sphere[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        np.testing.assert_array_equal(closed.contains(points), [True, False])
+        hbv.Grid(sphere[0]).contains(points)
+    holed = hbv.Mesh(CUBE_V, CUBE_F[2:])
+    for structure in (hbv.BVH(holed), hbv.Grid(holed)):
+        with pytest.warns(RuntimeWarning, match=r"not closed \(4 open edges"):
+            structure.contains(points)
+    # A bad argument is refused before any warning.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError):
+            hbv.BVH(holed).contains(np.zeros((2, 2)))
+
+
 def test_closest_point_matches_float64_brute_force(triangle_soup):
     mesh, v, f = triangle_soup
     tris = triangles_of(v, f)

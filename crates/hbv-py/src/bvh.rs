@@ -229,6 +229,8 @@ impl PyBvh {
 
     /// Whether each point lies inside the (closed) mesh: bool array. The majority of three
     /// ray parity votes (see hbv::proximity::inside); points on the surface may go either way.
+    /// A RuntimeWarning when the mesh is not closed (`Mesh.open_edges` > 0): inside is then
+    /// not defined near its open edges.
     #[pyo3(signature = (points, threads=None))]
     fn contains<'py>(
         &self,
@@ -236,7 +238,7 @@ impl PyBvh {
         points: &Bound<'py, PyAny>,
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        inside(py, || self.wide(), points, threads)
+        inside(py, self.mesh.get(), || self.wide(), points, threads)
     }
 
     /// The nearest surface point to each point: a dict of arrays `point` (N, 3) float64,

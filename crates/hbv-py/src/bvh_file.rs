@@ -146,12 +146,7 @@ fn from_loaded(
     })?;
     let options = options_from_settings(&file.settings, layout)?;
     let triangles = Arc::new(file.mesh);
-    let mesh = Py::new(
-        py,
-        PyMesh {
-            mesh: triangles.clone(),
-        },
-    )?;
+    let mesh = Py::new(py, PyMesh::new(triangles.clone()))?;
     Ok(PyBvh::from_parts(
         py,
         mesh,

@@ -149,7 +149,7 @@ impl PyGrid {
         points: &Bound<'py, PyAny>,
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        inside(py, || &self.grid, points, threads)
+        inside(py, self.mesh.get(), || &self.grid, points, threads)
     }
 
     /// The grid's shape and size, as a dict: `lam`, `mailbox`, `triangles`, `resolution`

@@ -1,11 +1,12 @@
 //! `hbv.Mesh` and `hbv.load`.
 
-use std::sync::Arc;
+use std::ffi::CString;
+use std::sync::{Arc, OnceLock};
 
 use hbv::glam::Vec3;
 use hbv::{MeshError, TriangleMesh};
 use numpy::{IntoPyArray, PyArray2, PyArrayMethods};
-use pyo3::exceptions::{PyOSError, PyValueError};
+use pyo3::exceptions::{PyOSError, PyRuntimeWarning, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
@@ -20,6 +21,38 @@ use crate::arrays::{float_array, index_array};
 #[pyclass(name = "Mesh", module = "hbv", frozen)]
 pub struct PyMesh {
     pub mesh: Arc<TriangleMesh>,
+    /// [`TriangleMesh::open_edge_count`], counted on first use.
+    open_edges: OnceLock<usize>,
+}
+
+impl PyMesh {
+    pub fn new(mesh: Arc<TriangleMesh>) -> Self {
+        Self {
+            mesh,
+            open_edges: OnceLock::new(),
+        }
+    }
+
+    /// The number of open edges, counted (off the GIL) on first use.
+    pub fn open_edge_count(&self, py: Python<'_>) -> usize {
+        py.detach(|| *self.open_edges.get_or_init(|| self.mesh.open_edge_count()))
+    }
+
+    /// Issues a RuntimeWarning, attributed to the Python caller of `query`, when the mesh is
+    /// not closed: inside tests are not defined near its open edges.
+    pub fn warn_if_open(&self, py: Python<'_>, query: &str) -> PyResult<()> {
+        let open = self.open_edge_count(py);
+        if open == 0 {
+            return Ok(());
+        }
+        let message = format!(
+            "{query}: the mesh is not closed ({open} open edges, each shared by an odd number \
+             of triangles: the rims of holes); inside is not defined near them, and points \
+             there may be answered either way (see Mesh.open_edges)"
+        );
+        let message = CString::new(message).expect("no NUL in the message");
+        PyErr::warn(py, &py.get_type::<PyRuntimeWarning>(), &message, 1)
+    }
 }
 
 pub fn mesh_error(e: MeshError) -> PyErr {
@@ -32,15 +65,13 @@ pub fn mesh_error(e: MeshError) -> PyErr {
 #[pymethods]
 impl PyMesh {
     #[new]
-    fn new(vertices: &Bound<'_, PyAny>, faces: &Bound<'_, PyAny>) -> PyResult<Self> {
+    fn from_arrays(vertices: &Bound<'_, PyAny>, faces: &Bound<'_, PyAny>) -> PyResult<Self> {
         let (floats, rows) = float_array("vertices", vertices, Some(3), None)?;
         let values = floats.values();
         let positions: Vec<Vec3> = (0..rows).map(|i| values.row3(i)).collect();
         let indices = index_array("faces", faces)?;
         let mesh = TriangleMesh::new(positions, indices).map_err(mesh_error)?;
-        Ok(Self {
-            mesh: Arc::new(mesh),
-        })
+        Ok(Self::new(Arc::new(mesh)))
     }
 
     /// Vertex positions, (V, 3) float32 (a copy).
@@ -81,6 +112,21 @@ impl PyMesh {
         self.mesh.degenerate_count()
     }
 
+    /// Number of open edges: edges shared by an odd number of the mesh's non-degenerate
+    /// triangles (the rims of holes, fins), vertices compared by position (so that vertices
+    /// split at seams join). 0 for a closed mesh; a T-junction counts as open. Counted once.
+    #[getter]
+    fn open_edges(&self, py: Python<'_>) -> usize {
+        self.open_edge_count(py)
+    }
+
+    /// Whether the mesh is closed (no open edges): it bounds a volume, and `contains` is
+    /// defined everywhere but on the surface.
+    #[getter]
+    fn is_closed(&self, py: Python<'_>) -> bool {
+        self.open_edge_count(py) == 0
+    }
+
     /// The bounding box as ((min x, y, z), (max x, y, z)).
     #[getter]
     fn bounds(&self) -> ([f32; 3], [f32; 3]) {
@@ -119,7 +165,5 @@ pub fn load(py: Python<'_>, path: std::path::PathBuf) -> PyResult<PyMesh> {
     let mesh = py
         .detach(|| TriangleMesh::load(&path))
         .map_err(mesh_error)?;
-    Ok(PyMesh {
-        mesh: Arc::new(mesh),
-    })
+    Ok(PyMesh::new(Arc::new(mesh)))
 }

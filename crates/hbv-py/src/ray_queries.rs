@@ -12,6 +12,7 @@ use rayon::prelude::*;
 use crate::arrays::{
     float_array, interval_bound, BoundSlice, Coordinate, FloatSlice, Floats, IntervalBound,
 };
+use crate::mesh::PyMesh;
 use crate::thread_pool::{fill_rows, run_on_threads, ThreadCount, GRAIN};
 
 /// The ray arguments of a query, read and checked.
@@ -231,14 +232,17 @@ pub fn hit_counts<'py, 's, A: AllHits + ?Sized + 's>(
 }
 
 /// Whether each point lies inside the (closed) mesh: bool array. The majority of three ray
-/// parity votes (see hbv::proximity::inside); points on the surface may go either way.
+/// parity votes (see hbv::proximity::inside); points on the surface may go either way. Warns
+/// (RuntimeWarning) when `mesh` is not closed.
 pub fn inside<'py, 's, A: AllHits + ?Sized + 's>(
     py: Python<'py>,
+    mesh: &PyMesh,
     structure: impl FnOnce() -> &'s A + Send,
     points: &Bound<'py, PyAny>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<bool>>> {
     let (points, rows) = float_array("points", points, Some(3), None)?;
+    mesh.warn_if_open(py, "contains")?;
     let points = points.values();
     let mut result = vec![false; rows];
     py.detach(|| {

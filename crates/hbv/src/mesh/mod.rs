@@ -9,6 +9,7 @@ mod gltf;
 mod obj;
 mod ply;
 pub mod procedural;
+mod topology;
 
 use std::path::Path;
 

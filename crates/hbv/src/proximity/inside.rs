@@ -24,7 +24,8 @@ const VOTE_DIRECTIONS: [Vec3; 3] = [
 /// a wrong answer needs two of the three independent rays to be so unlucky. The generalized
 /// winding number (Jacobson et al. 2013) is exact even on open meshes, but costs a sum over all
 /// triangles per point (or a hierarchical approximation, Barill et al. 2018), while a ray costs a
-/// traversal. The mesh must be closed (every edge shared by two triangles); points on the surface
+/// traversal. The mesh must be closed (every edge shared by an even number of triangles:
+/// [`TriangleMesh::is_closed`](crate::TriangleMesh::is_closed)); points on the surface
 /// may be reported either way. A point with a NaN or infinite coordinate is outside.
 pub fn contains<A: AllHits + ?Sized>(accel: &A, point: Vec3) -> bool {
     if !point.is_finite() {
