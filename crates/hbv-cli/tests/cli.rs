@@ -184,6 +184,30 @@ fn info_json_has_the_documented_keys() {
 }
 
 #[test]
+fn info_says_whether_the_mesh_is_closed() {
+    let dir = tempfile::tempdir().unwrap();
+    let closed = torus(Vec3::ZERO, 2.0, 0.5, 16, 8);
+    // The same torus without its first two triangles (one quad): a hole with a rim of four.
+    let open =
+        TriangleMesh::new(closed.positions().to_vec(), closed.indices()[2..].to_vec()).unwrap();
+    for (mesh, name, open_edges) in [(&closed, "closed.obj", 0), (&open, "open.obj", 4)] {
+        let path = dir.path().join(name);
+        write_obj(mesh, &path);
+        let out = hbv(&["info", "--json", path.to_str().unwrap()]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(v["open_edges"].as_u64(), Some(open_edges), "{name}: {v}");
+        let out = hbv(&["info", path.to_str().unwrap()]);
+        let expected = if open_edges == 0 {
+            "closed      yes"
+        } else {
+            "closed      no (4 open edges"
+        };
+        assert!(stdout(&out).contains(expected), "{}", stdout(&out));
+    }
+}
+
+#[test]
 fn info_on_missing_mesh_is_one_clear_line() {
     let out = hbv(&["info", "no/such/mesh.ply"]);
     assert!(!out.status.success());

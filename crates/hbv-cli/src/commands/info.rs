@@ -44,6 +44,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     let weights = SahWeights::default();
     let e = expected_tests(&tree);
     let sah = sah_cost(&tree, weights);
+    let open_edges = mesh.open_edge_count();
     let bounds = mesh.bounds();
     let (lo, hi) = if bounds.is_empty() {
         ([0.0; 3], [0.0; 3])
@@ -57,6 +58,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
             "triangles": mesh.triangle_count(),
             "degenerate": mesh.degenerate_count(),
             "vertices": mesh.positions().len(),
+            "open_edges": open_edges,
             "bounds": { "min": lo, "max": hi },
             "builder": builder_name,
             "builder_options": builder_options,
@@ -92,6 +94,13 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
         mesh.degenerate_count(),
         mesh.positions().len()
     );
+    if open_edges == 0 {
+        println!("closed      yes (every edge shared by an even number of triangles)");
+    } else {
+        println!(
+            "closed      no ({open_edges} open edges: inside tests are not defined near them)"
+        );
+    }
     println!(
         "bounds      [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]",
         lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
