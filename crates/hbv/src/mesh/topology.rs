@@ -76,6 +76,87 @@ mod tests {
     use super::*;
     use crate::mesh::procedural::{icosphere, torus};
     use glam::Vec3;
+    use proptest::prelude::*;
+    use std::collections::HashMap;
+
+    /// The reference: every non-degenerate triangle's edges, ends as position bits (−0 as +0),
+    /// counted in a map; the open edges are those counted an odd number of times.
+    fn open_edges_by_map(mesh: &TriangleMesh) -> usize {
+        let key = |v: u32| {
+            (mesh.positions()[v as usize] + 0.0)
+                .to_array()
+                .map(f32::to_bits)
+        };
+        let mut count: HashMap<([u32; 3], [u32; 3]), usize> = HashMap::new();
+        for (f, &[a, b, c]) in mesh.indices().iter().enumerate() {
+            if mesh.triangle(f).is_degenerate() {
+                continue;
+            }
+            for (x, y) in [(a, b), (b, c), (c, a)] {
+                let (x, y) = (key(x), key(y));
+                *count.entry((x.min(y), x.max(y))).or_default() += 1;
+            }
+        }
+        count.values().filter(|&&n| n % 2 == 1).count()
+    }
+
+    proptest! {
+        /// Random faces over a small lattice (so that edges are shared, by several triangles or
+        /// none, and some triangles are degenerate), vertices duplicated at random and some
+        /// written with negative zeros: the count equals the map's.
+        #[test]
+        fn open_edges_match_a_map_of_edges(
+            faces in prop::collection::vec([0u32..12, 0u32..12, 0u32..12], 0..60),
+            copies in prop::collection::vec(0u32..3, 60 * 3),
+        ) {
+            // 12 lattice points (−1, 0 or 1 on x; 0 or 1 on y and z, some zeros negative), each
+            // present three times as different vertices.
+            let lattice: Vec<Vec3> = (0..12)
+                .map(|i| {
+                    let zero = if i % 5 == 0 { -0.0 } else { 0.0 };
+                    let pick = |bit: u32| if i & bit != 0 { 1.0 } else { zero };
+                    Vec3::new((i % 3) as f32 - 1.0, pick(4), pick(8))
+                })
+                .collect();
+            let positions: Vec<Vec3> = (0..3).flat_map(|_| lattice.iter().copied()).collect();
+            let indices: Vec<[u32; 3]> = faces
+                .iter()
+                .enumerate()
+                .map(|(f, t)| {
+                    let mut k = 0;
+                    t.map(|v| {
+                        k += 1;
+                        v + 12 * copies[3 * f + k - 1]
+                    })
+                })
+                .collect();
+            let mesh = TriangleMesh::new(positions, indices).unwrap();
+            prop_assert_eq!(mesh.open_edge_count(), open_edges_by_map(&mesh));
+        }
+
+        /// A closed mesh stays closed with its vertices split per corner and its faces
+        /// shuffled; removing triangles opens exactly the edges the map says.
+        #[test]
+        fn closed_meshes_split_and_holed(seed in any::<u64>(), remove in 0usize..6) {
+            use rand::{seq::SliceRandom, SeedableRng};
+            let sphere = icosphere(Vec3::new(0.3, -0.2, 0.1), 1.5, 1);
+            let mut corners: Vec<Vec3> = Vec::new();
+            let mut faces: Vec<[u32; 3]> = Vec::new();
+            for t in sphere.indices() {
+                let base = corners.len() as u32;
+                corners.extend(t.map(|v| sphere.positions()[v as usize]));
+                faces.push([base, base + 1, base + 2]);
+            }
+            let mut rng = rand_pcg::Pcg64Mcg::seed_from_u64(seed);
+            faces.shuffle(&mut rng);
+            let split = TriangleMesh::new(corners.clone(), faces.clone()).unwrap();
+            prop_assert!(split.is_closed());
+            faces.truncate(faces.len() - remove);
+            let holed = TriangleMesh::new(corners, faces).unwrap();
+            prop_assert_eq!(holed.open_edge_count(), open_edges_by_map(&holed));
+            prop_assert_eq!(holed.is_closed(), remove == 0);
+        }
+    }
 
     fn mesh(positions: &[[f32; 3]], faces: &[[u32; 3]]) -> TriangleMesh {
         let positions = positions.iter().map(|&p| Vec3::from(p)).collect();
