@@ -38,6 +38,8 @@ import time
 
 import numpy as np
 
+from machine import describe, machine
+
 REPO = pathlib.Path(__file__).resolve().parent.parent
 
 # (ray set, query) pairs, as `hbv bench` measures them.
@@ -295,6 +297,7 @@ def main():
     rows = []
     for mesh in meshes:
         rows += compare_mesh(mesh, args, layouts)
+    print(f"Machine: {describe(machine(packages=('numpy', 'embreex')))}")
     print_tables(rows, layouts)
     if args.json:
         args.json.write_text(json.dumps(rows, indent=2))

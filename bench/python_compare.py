@@ -61,6 +61,7 @@ import time
 import numpy as np
 
 import hbv
+from machine import describe, machine
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 # The last `time_interleaved` call's page faults per timed call, by contender.
@@ -355,10 +356,13 @@ def main():
         rows += r
         closest.append(c)
         others += o
+    where = machine()
+    print(f"\nMachine: {describe(where)}")
     print_tables(rows, closest, others, cores)
     if args.json:
-        args.json.write_text(json.dumps({"cores": cores, "rays": rows, "closest_point": closest,
-                                         "other_queries": others}, indent=1))
+        args.json.write_text(json.dumps({"machine": where, "cores": cores, "rays": rows,
+                                         "closest_point": closest, "other_queries": others},
+                                        indent=1))
 
 
 if __name__ == "__main__":
