@@ -33,6 +33,7 @@ use rayon::prelude::*;
 
 use super::directed_rounding::f32_below;
 use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
+use super::prefetch::prefetch;
 
 /// Settings of the candidate grid that `closest_point` queries use on meshes of a few large
 /// triangles (cells listing every triangle that can be nearest inside them; see
@@ -335,20 +336,6 @@ impl CandidateGrid {
         let listing = self.cells.iter().filter(|c| c.count > 0).count();
         (self.cells.len(), listing, self.candidates.len())
     }
-}
-
-/// Asks the CPU to load the cache line at `address` (a hint: it never faults, whatever the
-/// address).
-#[inline(always)]
-fn prefetch<T>(address: *const T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch is a hint; it reads nothing and never faults, whatever the address.
-    unsafe {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        _mm_prefetch::<_MM_HINT_T0>(address.cast::<i8>());
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = address;
 }
 
 /// Decides triangle `t` with the brute force's f64 routine and keeps it by the brute force's

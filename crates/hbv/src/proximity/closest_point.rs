@@ -9,6 +9,7 @@ use super::candidate_grid::{
 };
 use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
 use super::point_triangle_lanes::F64_LANES;
+use super::prefetch::prefetch;
 use super::query_order::morton_order;
 use super::query_points::QueryPoints;
 #[cfg(target_arch = "x86_64")]
@@ -404,6 +405,12 @@ impl ClosestPointTree {
             .into_par_iter()
             .for_each(|((point, distance, prim, u, v), ranks)| {
                 for (k, &j) in ranks.iter().enumerate() {
+                    // The answers are read at random (4.7 MB of them for 65,536 points): each
+                    // is asked for 16 rows ahead (spot and teapot, 65,536 uniform points on a
+                    // Zen 3 VM: about 5 % of the batch, on one thread and on two).
+                    if let Some(&ahead) = ranks.get(k + 16) {
+                        prefetch(sorted.as_ptr().wrapping_add(ahead as usize));
+                    }
                     write_row(sorted[j as usize], k, (point, distance, prim, u, v));
                 }
             });

@@ -14,6 +14,7 @@ pub mod inside;
 mod node_frame;
 pub mod point_triangle;
 mod point_triangle_lanes;
+mod prefetch;
 mod query_order;
 mod query_points;
 mod search_lanes;
