@@ -91,6 +91,15 @@ pub(super) struct ListedTriangle {
     pub prim: u32,
 }
 
+/// A query point's cell ([`CandidateGrid::locate`]): its index in the grid's cells, its
+/// position, and whether the point is inside it (else the cell is the nearest to the point).
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Located {
+    index: usize,
+    at: [u32; 3],
+    inside: bool,
+}
+
 /// What a query point's cell says.
 pub(super) enum CellAnswer {
     /// The answer, from the cell's list: the nearest point, its computed squared distance and
@@ -243,9 +252,12 @@ impl CandidateGrid {
     /// nor any later one (their `l` are larger) is as near as the best. (The third `δ` and the
     /// relative `10⁻¹²` cover the rounding of `g`, `g²` and `|p - c|`, each below `10⁻¹⁵` of the
     /// grid's coordinates.)
+    ///
+    /// `cell` is `p`'s, from [`CandidateGrid::locate`] (done once per query, for its prefetches
+    /// and its answer).
     #[inline(always)]
-    pub fn answer(&self, p: DVec3) -> CellAnswer {
-        let (index, at, inside) = self.locate(p);
+    pub fn answer(&self, p: DVec3, cell: Located) -> CellAnswer {
+        let Located { index, at, inside } = cell;
         let cell = self.cells[index];
         if cell.count == 0 {
             return CellAnswer::Seed(cell.first);
@@ -288,10 +300,10 @@ impl CandidateGrid {
         }
     }
 
-    /// The cell of `p` (the nearest cell for a point outside the grid; some cell for any
-    /// point, NaN included): its index in `cells`, its position, and whether `p` is inside it.
+    /// The cell of `p`: the nearest cell for a point outside the grid, some cell for any point
+    /// (NaN included).
     #[inline(always)]
-    fn locate(&self, p: DVec3) -> (usize, [u32; 3], bool) {
+    pub fn locate(&self, p: DVec3) -> Located {
         let q = (p - self.origin) * (1.0 / self.size);
         let mut index = 0;
         let mut inside = true;
@@ -307,27 +319,25 @@ impl CandidateGrid {
             index += k as usize * stride;
             stride *= dim;
         }
-        (index, at, inside)
+        Located { index, at, inside }
     }
 
-    /// Asks for the memory of `p`'s cell: the first of the two dependent loads of
+    /// Asks for the memory of `cell`: the first of the two dependent loads of
     /// [`CandidateGrid::answer`]. A batch calls it some queries ahead, then
     /// [`CandidateGrid::prefetch_list`] fewer ahead, so that each query finds its cell and list in
     /// the nearest cache (the grid, about 1 MB on the Cornell box, does not fit in L2, and
     /// queries in their callers' order visit its cells at random).
     #[inline(always)]
-    pub fn prefetch_cell(&self, p: DVec3) {
-        let (index, _, _) = self.locate(p);
-        prefetch(self.cells.as_ptr().wrapping_add(index));
+    pub fn prefetch_cell(&self, cell: &Located) {
+        prefetch(self.cells.as_ptr().wrapping_add(cell.index));
     }
 
-    /// Asks for the memory of the start of `p`'s cell's list (reading the cell, which
+    /// Asks for the memory of the start of `cell`'s list (reading the cell, which
     /// [`CandidateGrid::prefetch_cell`] asked for earlier). A hint: for a cell that seeds a
     /// search, the address asked for is no list's, and the hint is wasted, never wrong.
     #[inline(always)]
-    pub fn prefetch_list(&self, p: DVec3) {
-        let (index, _, _) = self.locate(p);
-        let first = self.cells[index].first as usize;
+    pub fn prefetch_list(&self, cell: &Located) {
+        let first = self.cells[cell.index].first as usize;
         prefetch(self.candidates.as_ptr().wrapping_add(first));
     }
 

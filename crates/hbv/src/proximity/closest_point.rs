@@ -5,7 +5,7 @@ use rayon::prelude::*;
 
 use super::box_bound::{prune_threshold, rounding_margin, PointBracket};
 use super::candidate_grid::{
-    CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, NearestTriangles,
+    CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, Located, NearestTriangles,
 };
 use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
 use super::point_triangle_lanes::F64_LANES;
@@ -279,10 +279,22 @@ impl ClosestPointTree {
         let Some(grid) = &self.grid else {
             return self.search::<M>(p, None, stack, &mut ()).map(|(c, _)| c);
         };
+        self.query_in_cell::<M>(grid, p, grid.locate(p), stack)
+    }
+
+    /// [`ClosestPointTree::query`] with a grid, `p`'s cell located already.
+    #[inline(always)]
+    fn query_in_cell<M: SearchLanes>(
+        &self,
+        grid: &CandidateGrid,
+        p: DVec3,
+        cell: Located,
+        stack: &mut Vec<Pending>,
+    ) -> Option<ClosestPoint> {
         if !p.is_finite() {
             return None;
         }
-        match grid.answer(p) {
+        match grid.answer(p, cell) {
             CellAnswer::Nearest(q, d2, prim) => Some(ClosestPoint {
                 point: q.point,
                 distance: d2.sqrt(),
@@ -477,24 +489,29 @@ impl ClosestPointTree {
             }
             return;
         };
-        // Each query's cell is asked for `2 × AHEAD` queries before it is answered, and its
-        // list (once the cell has arrived) `AHEAD` before: the grid's two dependent loads
-        // overlap other queries' work instead of waiting on L3 in turn.
-        const AHEAD: usize = 4;
-        for &p in run.iter().take(2 * AHEAD) {
-            grid.prefetch_cell(p);
+        // Each query's cell is located and asked for `RING` queries before it is answered, and
+        // its list (once the cell has arrived) `RING / 2` before: the grid's two dependent
+        // loads overlap other queries' work instead of waiting on L3 in turn. Point `k`'s cell
+        // is kept in `located[k % RING]` from then until its answer.
+        const RING: usize = 8;
+        let mut located = [Located::default(); RING];
+        for (k, &p) in run.iter().enumerate().take(RING) {
+            located[k] = grid.locate(p);
+            grid.prefetch_cell(&located[k]);
         }
-        for &p in run.iter().take(AHEAD) {
-            grid.prefetch_list(p);
+        for cell in located.iter().take(run.len().min(RING / 2)) {
+            grid.prefetch_list(cell);
         }
         for (k, &p) in run.iter().enumerate() {
-            if let Some(&ahead) = run.get(k + 2 * AHEAD) {
-                grid.prefetch_cell(ahead);
+            let cell = located[k % RING];
+            if let Some(&ahead) = run.get(k + RING) {
+                located[k % RING] = grid.locate(ahead);
+                grid.prefetch_cell(&located[k % RING]);
             }
-            if let Some(&ahead) = run.get(k + AHEAD) {
-                grid.prefetch_list(ahead);
+            if k + RING / 2 < run.len() {
+                grid.prefetch_list(&located[(k + RING / 2) % RING]);
             }
-            write(k, self.query::<M>(p, &mut stack));
+            write(k, self.query_in_cell::<M>(grid, p, cell, &mut stack));
         }
     }
 
