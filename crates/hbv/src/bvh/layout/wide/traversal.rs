@@ -33,6 +33,7 @@ pub(super) enum Step {
 
 impl Traversal {
     /// A state holding no ray, to be set up with [`Traversal::restart`] (the batches' slots).
+    #[inline(always)]
     pub fn idle() -> Self {
         let ray = PreparedRay::new(&Ray::new(glam::Vec3::ZERO, glam::Vec3::X));
         Self {
