@@ -37,6 +37,40 @@ def test_closest_hit_matches_brute_force(triangle_soup):
     assert np.abs(point - along).max() < 1e-4
 
 
+def test_per_ray_intervals_match_brute_force(triangle_soup):
+    # More rays than one run of the batch loop (256), on one thread and on all, with each bound
+    # a scalar or per ray, float32 or float64: every ray gets its own interval.
+    mesh, v, f = triangle_soup
+    tris = triangles_of(v, f)
+    o, d = random_rays(1500, seed=9)
+    o, d = o.astype(np.float32).astype(np.float64), d.astype(np.float32).astype(np.float64)
+    t_all = ray_triangle_t(tris, o, d)
+    t_all[:, ~nondegenerate(tris)] = np.nan
+    rng = np.random.default_rng(3)
+    tmin = rng.uniform(0, 2, len(o)).astype(np.float32)
+    tmax = (tmin + rng.uniform(0, 3, len(o))).astype(np.float32)
+    bvh = hbv.BVH(mesh)
+    for lo, hi in [(tmin, tmax), (tmin.astype(np.float64), None), (0.5, tmax.astype(np.float64))]:
+        lo_ray = np.broadcast_to(np.float32(0.0 if lo is None else lo), len(o)).astype(np.float64)
+        hi_ray = np.broadcast_to(np.float32(np.inf if hi is None else hi), len(o)).astype(np.float64)
+        with np.errstate(invalid="ignore"):
+            inside = np.where((t_all >= lo_ray[:, None]) & (t_all <= hi_ray[:, None]), t_all, np.nan)
+        # Leave out rays with a hit within rounding of either end of their interval.
+        with np.errstate(invalid="ignore"):
+            near_end = np.any((np.abs(t_all - lo_ray[:, None]) < 1e-4)
+                              | (np.abs(t_all - hi_ray[:, None]) < 1e-4), axis=1)
+        ref_hit = ~np.all(np.isnan(inside), axis=1)
+        for threads in [1, None]:
+            h = bvh.intersect(o, d, tmin=lo, tmax=hi, threads=threads)
+            np.testing.assert_array_equal(h["hit"][~near_end], ref_hit[~near_end])
+            best = np.nanmin(np.where(ref_hit[:, None], inside, np.inf), axis=1)
+            ok = ref_hit & ~near_end
+            np.testing.assert_allclose(h["t"][ok], best[ok], rtol=1e-5, atol=1e-6)
+            np.testing.assert_array_equal(bvh.occluded(o, d, tmin=lo, tmax=hi, threads=threads),
+                                          h["hit"])
+        assert 0.1 < ref_hit.mean() < 0.9
+
+
 def test_all_hits_and_counts_match_brute_force(triangle_soup):
     mesh, v, f = triangle_soup
     tris = triangles_of(v, f)

@@ -268,6 +268,15 @@ impl IntervalBound<'_> {
 }
 
 impl BoundSlice<'_> {
+    /// The bound of every ray, if it is one value for all (else `otherwise`).
+    #[inline]
+    pub fn constant(&self, otherwise: f32) -> f32 {
+        match self {
+            BoundSlice::Scalar(x) => *x,
+            BoundSlice::PerRay(_) => otherwise,
+        }
+    }
+
     #[inline]
     pub fn at(&self, i: usize) -> f32 {
         match self {
