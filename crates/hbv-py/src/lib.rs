@@ -14,6 +14,7 @@ mod bvh;
 mod bvh_file;
 mod grid;
 mod mesh;
+mod output_column;
 mod ray_queries;
 mod thread_pool;
 

@@ -13,6 +13,7 @@ use crate::arrays::{
     float_array, interval_bound, BoundSlice, Coordinate, FloatSlice, Floats, IntervalBound,
 };
 use crate::mesh::PyMesh;
+use crate::output_column::OutputColumn;
 use crate::thread_pool::{fill_rows, run_on_threads, ThreadCount, GRAIN};
 
 /// The ray arguments of a query, read and checked.
@@ -154,12 +155,13 @@ pub fn closest_hits<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let batch = args.batch();
     let n = batch.len;
-    let (mut hit, mut t, mut prim) = (vec![false; n], vec![0.0f32; n], vec![0i64; n]);
-    let (mut u, mut v) = (vec![0.0f32; n], vec![0.0f32; n]);
-    let columns = (
-        &mut hit[..],
-        (&mut t[..], (&mut prim[..], (&mut u[..], &mut v[..]))),
+    let (mut hit, mut t, mut prim) = (
+        OutputColumn::<bool>::new(n),
+        OutputColumn::<f32>::new(n),
+        OutputColumn::<i64>::new(n),
     );
+    let (mut u, mut v) = (OutputColumn::<f32>::new(n), OutputColumn::<f32>::new(n));
+    let columns = (hit.rows(), (t.rows(), (prim.rows(), (u.rows(), v.rows()))));
     py.detach(|| {
         fill_rows(threads, columns, |first, (hit, (t, (prim, (u, v))))| {
             // In runs of GRAIN rays: the accelerator traces a run together (the wide layouts
@@ -172,15 +174,27 @@ pub fn closest_hits<'py>(
                 let found = &mut found[..end - start];
                 accel.intersect_into(&rays, found);
                 for (k, found) in (start..end).zip(found.iter()) {
-                    hit[k] = found.is_some();
-                    t[k] = found.map_or(f32::INFINITY, |h| h.t);
-                    prim[k] = found.map_or(-1, |h| h.prim as i64);
-                    u[k] = found.map_or(0.0, |h| h.u);
-                    v[k] = found.map_or(0.0, |h| h.v);
+                    hit[k].write(found.is_some());
+                    t[k].write(found.map_or(f32::INFINITY, |h| h.t));
+                    prim[k].write(found.map_or(-1, |h| h.prim as i64));
+                    u[k].write(found.map_or(0.0, |h| h.u));
+                    v[k].write(found.map_or(0.0, |h| h.v));
                 }
             }
         })
     })?;
+    // SAFETY: `fill_rows` called the closure on runs covering every row once, and it wrote
+    // every row of its run in each of the five columns (`fill_rows` returns only once every
+    // run is done; were a run to panic, nothing here would be reached).
+    let (hit, t, prim, u, v) = unsafe {
+        (
+            hit.into_filled(),
+            t.into_filled(),
+            prim.into_filled(),
+            u.into_filled(),
+            v.into_filled(),
+        )
+    };
     let out = PyDict::new(py);
     out.set_item("hit", hit.into_pyarray(py))?;
     out.set_item("t", t.into_pyarray(py))?;
