@@ -6,7 +6,11 @@ use super::Aabb;
 ///
 /// `direction` need not be unit length; `t` is measured in its units (as in Embree and
 /// `../shared/RAYS.md`).
+///
+/// `repr(C)`: eight floats in this order, which the wide layouts' batches read eight rays at a
+/// time as the rows of a matrix.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Ray {
     pub origin: Vec3,
     pub direction: Vec3,

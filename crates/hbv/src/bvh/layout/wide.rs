@@ -1,6 +1,7 @@
 //! Wide nodes: 4 or 8 children per node, their boxes tested together with SIMD.
 
 mod packet;
+mod root_filter;
 mod stream;
 mod traversal;
 mod triangle_packet;
@@ -417,6 +418,17 @@ fn detect_avx() -> bool {
 /// the AVX one is compiled with AVX enabled and its box test inlined into the loop.
 trait BoxKernel<const W: usize> {
     fn test(boxes: &LaneBoxes<W>, ray: &BoxRay, tmin: f32, tmax: f32) -> (u32, [f32; W]);
+
+    /// Whether [`BoxKernel::root_candidates`] decides every valid ray exactly as
+    /// [`Traversal::restart`] does, so that the batches may skip that test of the root box.
+    const ROOT_FILTER_EXACT: bool = false;
+
+    /// Which of eight rays may meet the root box `bounds` (bit `i` for `rays[i]`): a ray left
+    /// out is one the traversal's set-up would reject ([`root_filter`]). All eight by default.
+    #[inline(always)]
+    fn root_candidates(rays: &[Ray; 8], bounds: &Aabb, scene_size: f32) -> u32 {
+        root_filter::all_candidates(rays, bounds, scene_size)
+    }
 }
 
 /// SSE, four lanes at a time: the x86_64 baseline.
@@ -455,6 +467,14 @@ impl<const W: usize> BoxKernel<W> for AvxBoxes {
         let mut entry = [0.0f32; W];
         entry.copy_from_slice(&e);
         (mask, entry)
+    }
+
+    const ROOT_FILTER_EXACT: bool = true;
+
+    #[inline(always)]
+    fn root_candidates(rays: &[Ray; 8], bounds: &Aabb, scene_size: f32) -> u32 {
+        // SAFETY: as for `test`, reached only when the CPU reported AVX.
+        unsafe { root_filter::root_candidates_avx(rays, bounds, scene_size) }
     }
 }
 

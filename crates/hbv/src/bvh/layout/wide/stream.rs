@@ -13,6 +13,7 @@
 //! triangle tests, order of children, culling — so its answer is exactly [`WideLayout`]'s
 //! single-ray answer; only the order in which rays' steps are taken differs.
 
+use super::root_filter::RayCursor;
 use super::traversal::{Step, Traversal};
 use super::{BoxKernel, WideLayout};
 use crate::bvh::layout::wide_kernels::Lanes;
@@ -69,7 +70,7 @@ impl<const W: usize> WideLayout<W> {
         with_idle_traversals(|traversals| {
             let mut answer: [Option<A>; STREAMS] = std::array::from_fn(|_| None);
             let mut index = [0usize; STREAMS];
-            let mut next = 0;
+            let mut cursor = RayCursor::new();
             // Slots whose next step visits a node, and a leaf. Each round takes one step of every
             // busy ray as before, but all node steps first and then all leaf steps: whether a
             // step is a node's or a leaf's is then known from the loop, not from a branch on the
@@ -77,7 +78,7 @@ impl<const W: usize> WideLayout<W> {
             // branches per ray on the teapot).
             let (mut nodes, mut leaves) = (0u32, 0u32);
             for i in 0..STREAMS {
-                if self.start_next(rays, &mut next, &mut traversals[i], &mut index[i]) {
+                if self.start_next::<K>(rays, &mut cursor, &mut traversals[i], &mut index[i]) {
                     place(i, &traversals[i], &mut nodes, &mut leaves);
                 }
             }
@@ -88,7 +89,12 @@ impl<const W: usize> WideLayout<W> {
                         .node_step::<W, NoCount, K, NEAREST_FIRST, true>(self, &mut NoCount);
                     if let Step::Done = step {
                         answers[index[i]] = answer[i].take();
-                        if !self.start_next(rays, &mut next, &mut traversals[i], &mut index[i]) {
+                        if !self.start_next::<K>(
+                            rays,
+                            &mut cursor,
+                            &mut traversals[i],
+                            &mut index[i],
+                        ) {
                             continue;
                         }
                     }
@@ -101,7 +107,12 @@ impl<const W: usize> WideLayout<W> {
                     });
                     if let Step::Done = step {
                         answers[index[i]] = found.take();
-                        if !self.start_next(rays, &mut next, &mut traversals[i], &mut index[i]) {
+                        if !self.start_next::<K>(
+                            rays,
+                            &mut cursor,
+                            &mut traversals[i],
+                            &mut index[i],
+                        ) {
                             continue;
                         }
                     }
@@ -161,24 +172,35 @@ fn place(i: usize, traversal: &Traversal, nodes: &mut u32, leaves: &mut u32) {
 }
 
 impl<const W: usize> WideLayout<W> {
-    /// Sets a slot's `traversal` up for the next ray, from `rays[*next]` on, that can meet the
-    /// tree, and its `index`; the rays skipped (invalid, or missing the root's box) keep their
-    /// miss. `false` when no ray is left. (A function rather than a closure so that it is
-    /// inlined into the kernel compiled with AVX: left out of line, the setup of each ray took
-    /// 300 instructions.)
+    /// Sets a slot's `traversal` up for the next ray that can meet the tree, and its `index`;
+    /// the rays skipped (invalid, or missing the root's box: left out by the kernel's
+    /// [`BoxKernel::root_candidates`], or by [`Traversal::restart`] when that filter is not
+    /// exact) keep their miss. `false` when no ray is left. (A function rather than a closure
+    /// so that it is inlined into the kernel compiled with AVX: left out of line, the setup of
+    /// each ray took 300 instructions.)
     #[inline(always)]
-    fn start_next(
+    fn start_next<K: BoxKernel<W>>(
         &self,
         rays: &[Ray],
-        next: &mut usize,
+        cursor: &mut RayCursor,
         traversal: &mut Traversal,
         index: &mut usize,
     ) -> bool {
-        while *next < rays.len() {
-            let ray = &rays[*next];
-            *next += 1;
-            if ray.is_valid() && traversal.restart(self, ray, &mut NoCount) {
-                *index = *next - 1;
+        let Some((_, bounds, scene_size)) = &self.root else {
+            return false;
+        };
+        while let Some(i) = cursor.next(rays, bounds, *scene_size, K::root_candidates) {
+            let ray = &rays[i];
+            if !ray.is_valid() {
+                continue;
+            }
+            let started = if K::ROOT_FILTER_EXACT {
+                traversal.restart_meeting_root(self, ray, &mut NoCount)
+            } else {
+                traversal.restart(self, ray, &mut NoCount)
+            };
+            if started {
+                *index = i;
                 return true;
             }
         }

@@ -79,13 +79,37 @@ impl Traversal {
         let Some((ray, box_ray, root)) = Self::enter(layout, ray, counter) else {
             return false;
         };
+        self.reset(ray, box_ray, root);
+        true
+    }
+
+    /// [`Traversal::restart`] for a ray known to meet the root's box (its test is skipped):
+    /// `false` only for an empty tree. (Were the ray to miss the box after all, its traversal
+    /// would find nothing at more cost: the box test is an early exit, not part of the answer.)
+    #[inline(always)]
+    pub fn restart_meeting_root<const W: usize, C: Counter>(
+        &mut self,
+        layout: &WideLayout<W>,
+        ray: &Ray,
+        counter: &mut C,
+    ) -> bool {
+        let Some((root, _, scene_size)) = layout.root else {
+            return false;
+        };
+        counter.boxes_tested(1);
+        let (ray, box_ray) = Self::prepare(ray, scene_size);
+        self.reset(ray, box_ray, root);
+        true
+    }
+
+    #[inline(always)]
+    fn reset(&mut self, ray: PreparedRay, box_ray: BoxRay, root: u32) {
         self.box_ray = box_ray;
         self.box_tmin = ray.box_tmin();
         self.box_tmax = ray.box_tmax();
         self.ray = ray;
         self.current = root;
         self.stack.clear();
-        true
     }
 
     /// The prepared ray, with its box-test margins for the tree, its box-kernel constants and
@@ -116,6 +140,19 @@ impl Traversal {
         let mut prepared = PreparedRay::with_inverse(ray, inv);
         (prepared.box_margin, prepared.slab_margin) = (box_margin, slab_margin);
         Some((prepared, box_ray, root))
+    }
+
+    /// The prepared ray with its box-test margins for a tree of [`PreparedRay::scene_size`]
+    /// `scene_size`, and its box-kernel constants: [`Traversal::enter`] without the root box's
+    /// test.
+    #[inline(always)]
+    fn prepare(ray: &Ray, scene_size: f32) -> (PreparedRay, BoxRay) {
+        let inv = PreparedRay::inverse_of(ray.direction);
+        let (box_margin, slab_margin) = PreparedRay::margins(ray.origin, ray.direction, scene_size);
+        let box_ray = BoxRay::from_parts(ray.origin, ray.direction, inv, slab_margin);
+        let mut prepared = PreparedRay::with_inverse(ray, inv);
+        (prepared.box_margin, prepared.slab_margin) = (box_margin, slab_margin);
+        (prepared, box_ray)
     }
 
     /// Visits the current node or leaf and chooses what comes next: [`Traversal::leaf_step`] or
