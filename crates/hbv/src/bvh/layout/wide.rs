@@ -16,10 +16,7 @@ use super::wide_kernels::{BoxRay, LaneBoxes, Lanes};
 use crate::bvh::tree::{BuildTree, NodeContent, NodeId};
 use crate::geometry::{Aabb, PreparedRay, Ray};
 use crate::mesh::TriangleMesh;
-use crate::query::{
-    closest_hits_one_by_one, occluders_one_by_one, record_closer_hit, record_hit, Hit,
-    TraversalKernel,
-};
+use crate::query::{record_closer_hit, record_hit, Hit, TraversalKernel};
 use crate::stats::{Counter, NoCount};
 
 /// Bit 31 of a child reference: the child is a leaf.
@@ -693,9 +690,6 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
     }
 
     fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        if !self.interleave {
-            return closest_hits_one_by_one(self, rays, hits);
-        }
         #[cfg(target_arch = "x86_64")]
         if W == 8 && self.use_avx {
             // SAFETY: `use_avx` is set only when the CPU reported AVX.
@@ -705,9 +699,6 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
     }
 
     fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
-        if !self.interleave {
-            return occluders_one_by_one(self, rays, occluders);
-        }
         #[cfg(target_arch = "x86_64")]
         if W == 8 && self.use_avx {
             // SAFETY: `use_avx` is set only when the CPU reported AVX.
@@ -718,14 +709,14 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
 }
 
 impl<const W: usize> WideLayout<W> {
-    /// The interleaved closest-hit batch compiled with AVX. Call only when the CPU has AVX.
+    /// The closest-hit batch compiled with AVX. Call only when the CPU has AVX.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     unsafe fn closest_hits_avx(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         self.closest_hits_with::<AvxBoxes>(rays, hits)
     }
 
-    /// The interleaved any-hit batch compiled with AVX. Call only when the CPU has AVX.
+    /// The any-hit batch compiled with AVX. Call only when the CPU has AVX.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     unsafe fn any_hits_avx(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {

@@ -67,6 +67,27 @@ impl Traversal {
         })
     }
 
+    /// [`Traversal::start`] for a ray known to meet the root's box (see
+    /// [`Traversal::restart_meeting_root`]): `None` only for an empty tree.
+    #[inline(always)]
+    pub fn start_meeting_root<const W: usize, C: Counter>(
+        layout: &WideLayout<W>,
+        ray: &Ray,
+        counter: &mut C,
+    ) -> Option<Self> {
+        let (root, _, scene_size) = layout.root?;
+        counter.boxes_tested(1);
+        let (ray, box_ray) = Self::prepare(ray, scene_size);
+        Some(Self {
+            box_ray,
+            box_tmin: ray.box_tmin(),
+            box_tmax: ray.box_tmax(),
+            ray,
+            current: root,
+            stack: TraversalStack::new(),
+        })
+    }
+
     /// [`Traversal::start`] in place, reusing this state (and its stack's memory); `false`, and
     /// nothing to do, when the ray cannot meet the tree.
     #[inline(always)]
