@@ -57,14 +57,7 @@ impl Traversal {
         counter: &mut C,
     ) -> Option<Self> {
         let (ray, box_ray, root) = Self::enter(layout, ray, counter)?;
-        Some(Self {
-            box_ray,
-            box_tmin: ray.box_tmin(),
-            box_tmax: ray.box_tmax(),
-            ray,
-            current: root,
-            stack: TraversalStack::new(),
-        })
+        Some(Self::new(ray, box_ray, root))
     }
 
     /// [`Traversal::start`] for a ray known to meet the root's box (see
@@ -78,14 +71,19 @@ impl Traversal {
         let (root, _, scene_size) = layout.root?;
         counter.boxes_tested(1);
         let (ray, box_ray) = Self::prepare(ray, scene_size);
-        Some(Self {
+        Some(Self::new(ray, box_ray, root))
+    }
+
+    #[inline(always)]
+    fn new(ray: PreparedRay, box_ray: BoxRay, root: u32) -> Self {
+        Self {
             box_ray,
             box_tmin: ray.box_tmin(),
             box_tmax: ray.box_tmax(),
             ray,
             current: root,
             stack: TraversalStack::new(),
-        })
+        }
     }
 
     /// [`Traversal::start`] in place, reusing this state (and its stack's memory); `false`, and
@@ -144,23 +142,19 @@ impl Traversal {
         let (root, root_bounds, scene_size) = layout.root?;
         // The root box first, from what its test needs: about two thirds of a camera's rays
         // miss it, and skip the rest of the preparation.
-        let inv = PreparedRay::inverse_of(ray.direction);
-        let (box_margin, slab_margin) = PreparedRay::margins(ray.origin, ray.direction, scene_size);
-        let box_ray = BoxRay::from_parts(ray.origin, ray.direction, inv, slab_margin);
+        let setup = BoxSetup::new(ray, scene_size);
         counter.boxes_tested(1);
         let corners = [root_bounds.min, root_bounds.max];
         let (met, _) = box_scalar(
             corners,
-            &box_ray,
-            ray.tmin - box_margin,
-            ray.tmax + box_margin,
+            &setup.box_ray,
+            ray.tmin - setup.box_margin,
+            ray.tmax + setup.box_margin,
         );
         if !met {
             return None;
         }
-        let mut prepared = PreparedRay::with_inverse(ray, inv);
-        (prepared.box_margin, prepared.slab_margin) = (box_margin, slab_margin);
-        Some((prepared, box_ray, root))
+        Some((setup.prepared(ray), setup.box_ray, root))
     }
 
     /// The prepared ray with its box-test margins for a tree of [`PreparedRay::scene_size`]
@@ -168,12 +162,8 @@ impl Traversal {
     /// test.
     #[inline(always)]
     fn prepare(ray: &Ray, scene_size: f32) -> (PreparedRay, BoxRay) {
-        let inv = PreparedRay::inverse_of(ray.direction);
-        let (box_margin, slab_margin) = PreparedRay::margins(ray.origin, ray.direction, scene_size);
-        let box_ray = BoxRay::from_parts(ray.origin, ray.direction, inv, slab_margin);
-        let mut prepared = PreparedRay::with_inverse(ray, inv);
-        (prepared.box_margin, prepared.slab_margin) = (box_margin, slab_margin);
-        (prepared, box_ray)
+        let setup = BoxSetup::new(ray, scene_size);
+        (setup.prepared(ray), setup.box_ray)
     }
 
     /// Visits the current node or leaf and chooses what comes next: [`Traversal::leaf_step`] or
@@ -267,5 +257,37 @@ impl Traversal {
                 None => return Step::Done,
             }
         }
+    }
+}
+
+/// What a ray's box tests need (its reciprocal direction, margins and box-kernel constants),
+/// computed before the rest of its preparation so that the root box can be tested first.
+struct BoxSetup {
+    inv: glam::Vec3,
+    box_margin: f32,
+    slab_margin: f32,
+    box_ray: BoxRay,
+}
+
+impl BoxSetup {
+    #[inline(always)]
+    fn new(ray: &Ray, scene_size: f32) -> Self {
+        let inv = PreparedRay::inverse_of(ray.direction);
+        let (box_margin, slab_margin) = PreparedRay::margins(ray.origin, ray.direction, scene_size);
+        let box_ray = BoxRay::from_parts(ray.origin, ray.direction, inv, slab_margin);
+        Self {
+            inv,
+            box_margin,
+            slab_margin,
+            box_ray,
+        }
+    }
+
+    /// The rest: the prepared ray, with these margins.
+    #[inline(always)]
+    fn prepared(&self, ray: &Ray) -> PreparedRay {
+        let mut prepared = PreparedRay::with_inverse(ray, self.inv);
+        (prepared.box_margin, prepared.slab_margin) = (self.box_margin, self.slab_margin);
+        prepared
     }
 }
