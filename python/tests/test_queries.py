@@ -12,13 +12,20 @@ def triangles_of(v, f):
     return v.astype(np.float32).astype(np.float64)[f]
 
 
-def test_closest_hit_matches_brute_force(triangle_soup):
-    mesh, v, f = triangle_soup
+def rays_and_brute_force(v, f, n, seed=2):
+    """`n` random rays (rounded to float32, held as float64) and brute force's t of every ray
+    against every non-degenerate triangle (NaN: no hit)."""
     tris = triangles_of(v, f)
-    o, d = random_rays(400)
+    o, d = random_rays(n, seed=seed)
     o, d = o.astype(np.float32).astype(np.float64), d.astype(np.float32).astype(np.float64)
     t_all = ray_triangle_t(tris, o, d)
     t_all[:, ~nondegenerate(tris)] = np.nan
+    return tris, o, d, t_all
+
+
+def test_closest_hit_matches_brute_force(triangle_soup):
+    mesh, v, f = triangle_soup
+    tris, o, d, t_all = rays_and_brute_force(v, f, 400)
     h = hbv.BVH(mesh).intersect(o, d)
     ref_hit = ~np.all(np.isnan(t_all), axis=1)
     np.testing.assert_array_equal(h["hit"], ref_hit)
@@ -41,11 +48,7 @@ def test_per_ray_intervals_match_brute_force(triangle_soup):
     # More rays than one run of the batch loop (256), on one thread and on all, with each bound
     # a scalar or per ray, float32 or float64: every ray gets its own interval.
     mesh, v, f = triangle_soup
-    tris = triangles_of(v, f)
-    o, d = random_rays(1500, seed=9)
-    o, d = o.astype(np.float32).astype(np.float64), d.astype(np.float32).astype(np.float64)
-    t_all = ray_triangle_t(tris, o, d)
-    t_all[:, ~nondegenerate(tris)] = np.nan
+    tris, o, d, t_all = rays_and_brute_force(v, f, 1500, seed=9)
     rng = np.random.default_rng(3)
     tmin = rng.uniform(0, 2, len(o)).astype(np.float32)
     tmax = (tmin + rng.uniform(0, 3, len(o))).astype(np.float32)
@@ -73,11 +76,7 @@ def test_per_ray_intervals_match_brute_force(triangle_soup):
 
 def test_all_hits_and_counts_match_brute_force(triangle_soup):
     mesh, v, f = triangle_soup
-    tris = triangles_of(v, f)
-    o, d = random_rays(300, seed=5)
-    o, d = o.astype(np.float32).astype(np.float64), d.astype(np.float32).astype(np.float64)
-    t_all = ray_triangle_t(tris, o, d)
-    t_all[:, ~nondegenerate(tris)] = np.nan
+    tris, o, d, t_all = rays_and_brute_force(v, f, 300, seed=5)
     bvh = hbv.BVH(mesh)
     ray, t, prim = bvh.intersect_all(o, d)
     counts = bvh.count(o, d)
