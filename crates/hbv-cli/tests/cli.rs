@@ -230,7 +230,7 @@ fn trace_matches_brute_force_on_a_generated_mesh() {
 }
 
 #[test]
-fn trace_json_reports_timings_and_threads_do_not_change_answers() {
+fn trace_json_reports_timings_and_threads_or_repeats_do_not_change_answers() {
     let dir = tempfile::tempdir().unwrap();
     let mesh = torus(Vec3::ZERO, 2.0, 0.7, 24, 12);
     let path = dir.path().join("torus.obj");
@@ -238,8 +238,8 @@ fn trace_json_reports_timings_and_threads_do_not_change_answers() {
     let rays_path = dir.path().join("rays.npz");
     ray_file::write_rays(&rays_path, &rays_at(&mesh, 1000, 2)).unwrap();
     let mut answers = Vec::new();
-    for threads in ["1", "2"] {
-        let out_path = dir.path().join(format!("hits{threads}.npz"));
+    for (threads, repeat) in [("1", "1"), ("2", "1"), ("1", "3")] {
+        let out_path = dir.path().join(format!("hits{threads}_{repeat}.npz"));
         let out = hbv(&[
             "trace",
             path.to_str().unwrap(),
@@ -249,6 +249,8 @@ fn trace_json_reports_timings_and_threads_do_not_change_answers() {
             out_path.to_str().unwrap(),
             "--threads",
             threads,
+            "--repeat",
+            repeat,
             "--json",
         ]);
         assert!(out.status.success(), "{}", stderr(&out));
@@ -257,9 +259,34 @@ fn trace_json_reports_timings_and_threads_do_not_change_answers() {
             assert!(v.get(key).is_some(), "missing {key} in {v}");
         }
         assert_eq!(v["rays"], 1000);
+        // One time per run; the one reported is their median, so one of them for an odd count.
+        let each: Vec<f64> = v["trace_seconds_each"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|s| s.as_f64().unwrap())
+            .collect();
+        assert_eq!(each.len().to_string(), repeat, "{v}");
+        assert!(each.contains(&v["trace_seconds"].as_f64().unwrap()), "{v}");
         answers.push(hit_file::read_hits(&out_path).unwrap());
     }
     assert_eq!(answers[0], answers[1]);
+    assert_eq!(answers[0], answers[2]);
+
+    let out_path = dir.path().join("never.npz");
+    let out = hbv(&[
+        "trace",
+        path.to_str().unwrap(),
+        "--rays",
+        rays_path.to_str().unwrap(),
+        "--out",
+        out_path.to_str().unwrap(),
+        "--repeat",
+        "0",
+    ]);
+    assert!(!out.status.success());
+    assert!(stderr(&out).contains("--repeat"), "{}", stderr(&out));
+    assert!(!out_path.exists());
 }
 
 #[test]

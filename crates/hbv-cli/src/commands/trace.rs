@@ -49,9 +49,21 @@ pub struct TraceArgs {
     /// Acceleration structure: a BVH (--builder, --layout) or a uniform grid.
     #[arg(long, value_enum, default_value_t = AccelName::Bvh)]
     pub accel: AccelName,
+    /// Trace the rays this many times and report the median time (the answers are the same
+    /// every time; the file holds one copy). The first run pays for cold caches and for the
+    /// first touch of the answers' pages, which later runs, like a peer's warmed-up calls in a
+    /// benchmark, do not.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    pub repeat: u32,
     /// Print one JSON object of timings instead of text.
     #[arg(long)]
     pub json: bool,
+}
+
+/// One trace's answers.
+enum Answers {
+    Occluded(Vec<bool>),
+    Hits(Vec<Option<hbv::Hit>>),
 }
 
 pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
@@ -98,29 +110,42 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
             }
         };
 
-    let start = Instant::now();
-    let hits = if args.occluded {
-        let occluded = if args.one_by_one {
-            pool.install(|| one_by_one(&rays, |r| accel.occluded(r)))
+    let trace = || {
+        let start = Instant::now();
+        let answers = if args.occluded {
+            Answers::Occluded(if args.one_by_one {
+                pool.install(|| one_by_one(&rays, |r| accel.occluded(r)))
+            } else {
+                pool.install(|| accel.occluded_batch(&rays))
+            })
         } else {
-            pool.install(|| accel.occluded_batch(&rays))
+            Answers::Hits(if args.coherent {
+                pool.install(|| accel.intersect_coherent(&rays))
+            } else if args.one_by_one {
+                pool.install(|| one_by_one(&rays, |r| accel.intersect(r)))
+            } else {
+                pool.install(|| accel.intersect_batch(&rays))
+            })
         };
-        let trace_seconds = start.elapsed().as_secs_f64();
-        hit_file::write_occlusion(&args.out, &occluded).context("cannot write hits")?;
-        (occluded.iter().filter(|&&o| o).count(), trace_seconds)
-    } else {
-        let hits = if args.coherent {
-            pool.install(|| accel.intersect_coherent(&rays))
-        } else if args.one_by_one {
-            pool.install(|| one_by_one(&rays, |r| accel.intersect(r)))
-        } else {
-            pool.install(|| accel.intersect_batch(&rays))
-        };
-        let trace_seconds = start.elapsed().as_secs_f64();
-        hit_file::write_hits(&args.out, &hits).context("cannot write hits")?;
-        (hits.iter().filter(|h| h.is_some()).count(), trace_seconds)
+        (answers, start.elapsed().as_secs_f64())
     };
-    let (hit_count, trace_seconds) = hits;
+    let (answers, first_seconds) = trace();
+    let mut run_seconds = vec![first_seconds];
+    for _ in 1..args.repeat {
+        // The same answers each time: only the time is kept.
+        run_seconds.push(trace().1);
+    }
+    let trace_seconds = median(&mut run_seconds.clone());
+    let hit_count = match &answers {
+        Answers::Occluded(occluded) => {
+            hit_file::write_occlusion(&args.out, occluded).context("cannot write hits")?;
+            occluded.iter().filter(|&&o| o).count()
+        }
+        Answers::Hits(hits) => {
+            hit_file::write_hits(&args.out, hits).context("cannot write hits")?;
+            hits.iter().filter(|h| h.is_some()).count()
+        }
+    };
     let rays_per_second = if trace_seconds > 0.0 {
         rays.len() as f64 / trace_seconds
     } else {
@@ -139,6 +164,7 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
             "load_seconds": load_seconds,
             "build_seconds": build_seconds,
             "trace_seconds": trace_seconds,
+            "trace_seconds_each": run_seconds,
             "rays_per_second": rays_per_second,
         });
         println!("{}", serde_json::to_string_pretty(&out)?);
@@ -155,10 +181,26 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         );
         println!("load      {load_seconds:.3} s");
         println!("build     {build_seconds:.3} s ({built})");
-        println!("trace     {trace_seconds:.3} s, {} rays ({query}), {hit_count} hit, {:.3} Mrays/s on {} threads", rays.len(), rays_per_second / 1e6, pool.current_num_threads());
+        let runs = if args.repeat > 1 {
+            format!(" (median of {} runs)", args.repeat)
+        } else {
+            String::new()
+        };
+        println!("trace     {trace_seconds:.3} s{runs}, {} rays ({query}), {hit_count} hit, {:.3} Mrays/s on {} threads", rays.len(), rays_per_second / 1e6, pool.current_num_threads());
         println!("wrote     {}", args.out.display());
     }
     Ok(())
+}
+
+/// The median of `seconds` (not empty): the middle one, or the mean of the middle two.
+fn median(seconds: &mut [f64]) -> f64 {
+    seconds.sort_by(f64::total_cmp);
+    let n = seconds.len();
+    if n % 2 == 1 {
+        seconds[n / 2]
+    } else {
+        (seconds[n / 2 - 1] + seconds[n / 2]) / 2.0
+    }
 }
 
 /// `query` on each ray, one call per ray, in parallel on the current pool.
