@@ -695,7 +695,7 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
             // SAFETY: `use_avx` is set only when the CPU reported AVX.
             return unsafe { self.closest_hits_avx(rays, hits) };
         }
-        self.closest_hits_with::<DefaultBoxes>(rays, hits)
+        self.closest_hits_with::<DefaultBoxes>(rays, hits, stream::closest_leaf_visit!())
     }
 
     fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
@@ -704,7 +704,7 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
             // SAFETY: `use_avx` is set only when the CPU reported AVX.
             return unsafe { self.any_hits_avx(rays, occluders) };
         }
-        self.any_hits_with::<DefaultBoxes>(rays, occluders)
+        self.any_hits_with::<DefaultBoxes>(rays, occluders, stream::any_leaf_visit!())
     }
 }
 
@@ -713,13 +713,13 @@ impl<const W: usize> WideLayout<W> {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     unsafe fn closest_hits_avx(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        self.closest_hits_with::<AvxBoxes>(rays, hits)
+        self.closest_hits_with::<AvxBoxes>(rays, hits, stream::closest_leaf_visit!())
     }
 
     /// The any-hit batch compiled with AVX. Call only when the CPU has AVX.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     unsafe fn any_hits_avx(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
-        self.any_hits_with::<AvxBoxes>(rays, occluders)
+        self.any_hits_with::<AvxBoxes>(rays, occluders, stream::any_leaf_visit!())
     }
 }
