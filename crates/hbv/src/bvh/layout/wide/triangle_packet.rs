@@ -356,6 +356,39 @@ mod tests {
             check(&TrianglePacket::new(&tris), &Ray::new(origin, target - origin))?;
         }
 
+        /// Intervals that begin or end exactly at a lane's hit distance, or one ulp to either
+        /// side: both ends are inclusive, in the packet as in the scalar test. (Random
+        /// intervals almost never end on a hit, so `t >= tmin` written as `t > tmin` passed
+        /// the other tests.)
+        #[test]
+        fn packet_test_at_the_ends_of_the_interval(
+            ray in ray_strategy(),
+            pts in prop::collection::vec((-2.0f32..2.0, -2.0f32..2.0, -2.0f32..2.0), 12),
+        ) {
+            let tris: Vec<(u32, Triangle)> = pts.chunks(3).enumerate().map(|(i, p)| {
+                let v = |k: usize| Vec3::new(p[k].0, p[k].1, p[k].2);
+                (i as u32, Triangle::new(v(0), v(1), v(2)))
+            }).collect();
+            let packet = TrianglePacket::new(&tris);
+            let open = Ray { tmin: 0.0, tmax: f32::INFINITY, ..ray };
+            let found = packet.test_scalar(&PreparedRay::new(&open));
+            for lane in crate::bvh::layout::wide_kernels::Lanes(found.hit) {
+                let t = found.hit(lane).t;
+                prop_assume!(t > 0.0 && t.is_finite());
+                let below = f32::from_bits(t.to_bits() - 1);
+                let above = f32::from_bits(t.to_bits() + 1);
+                for (tmin, tmax) in [(t, f32::INFINITY), (0.0, t), (t, t), (below, t), (t, above), (above, f32::INFINITY), (0.0, below)] {
+                    let bounded = Ray { tmin, tmax, ..open };
+                    check(&packet, &bounded)?;
+                    // The lane is hit exactly when its t lies in [tmin, tmax].
+                    let test = packet.test(&PreparedRay::new(&bounded));
+                    if test.undecided >> lane & 1 == 0 {
+                        prop_assert_eq!(test.hit >> lane & 1 == 1, tmin <= t && t <= tmax, "lane {} in [{}, {}]", lane, tmin, tmax);
+                    }
+                }
+            }
+        }
+
         /// Rays leaving a point on one of the triangles, with and without an offset `tmin`:
         /// the near-origin rule.
         #[test]
