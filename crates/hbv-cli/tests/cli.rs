@@ -237,22 +237,26 @@ fn trace_json_reports_timings_and_threads_or_repeats_do_not_change_answers() {
     write_obj(&mesh, &path);
     let rays_path = dir.path().join("rays.npz");
     ray_file::write_rays(&rays_path, &rays_at(&mesh, 1000, 2)).unwrap();
-    let mut answers = Vec::new();
-    for (threads, repeat) in [("1", "1"), ("2", "1"), ("1", "3")] {
-        let out_path = dir.path().join(format!("hits{threads}_{repeat}.npz"));
-        let out = hbv(&[
+    // `hbv trace` of the torus and its rays into `out`, with more options.
+    let trace = |out: &Path, options: &[&str]| {
+        let mut args = vec![
             "trace",
             path.to_str().unwrap(),
             "--rays",
             rays_path.to_str().unwrap(),
             "--out",
-            out_path.to_str().unwrap(),
-            "--threads",
-            threads,
-            "--repeat",
-            repeat,
-            "--json",
-        ]);
+            out.to_str().unwrap(),
+        ];
+        args.extend_from_slice(options);
+        hbv(&args)
+    };
+    let mut answers = Vec::new();
+    for (threads, repeat) in [("1", "1"), ("2", "1"), ("1", "3")] {
+        let out_path = dir.path().join(format!("hits{threads}_{repeat}.npz"));
+        let out = trace(
+            &out_path,
+            &["--threads", threads, "--repeat", repeat, "--json"],
+        );
         assert!(out.status.success(), "{}", stderr(&out));
         let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
         for key in ["build_seconds", "trace_seconds", "rays", "rays_per_second"] {
@@ -274,16 +278,7 @@ fn trace_json_reports_timings_and_threads_or_repeats_do_not_change_answers() {
     assert_eq!(answers[0], answers[2]);
 
     let out_path = dir.path().join("never.npz");
-    let out = hbv(&[
-        "trace",
-        path.to_str().unwrap(),
-        "--rays",
-        rays_path.to_str().unwrap(),
-        "--out",
-        out_path.to_str().unwrap(),
-        "--repeat",
-        "0",
-    ]);
+    let out = trace(&out_path, &["--repeat", "0"]);
     assert!(!out.status.success());
     assert!(stderr(&out).contains("--repeat"), "{}", stderr(&out));
     assert!(!out_path.exists());
