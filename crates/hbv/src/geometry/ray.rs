@@ -182,8 +182,8 @@ impl PreparedRay {
     /// ```
     ///
     /// Both are at least `2^-126` (the subnormal term of `δ`). An overflowing `X` (a direction
-    /// of tiny length far from the scene) gives `m = 0` and `s = +inf`: every box is met, and
-    /// the answers stay exact.
+    /// of tiny length far from the scene) gives `m = f32::MAX` and `s = +inf`: every box the
+    /// ray's line meets is met and none is culled by the interval, and the answers stay exact.
     pub fn bound_errors_within(&mut self, scene: &Aabb) {
         self.bound_errors_within_size(Self::scene_size(scene));
     }
@@ -211,11 +211,15 @@ impl PreparedRay {
         // `1 / |d_kz|`: the same bits as `|shear.z|`.
         let x = (origin_size + scene_size) * (1.0 / direction.abs().max_element());
         let margin = (Self::BOX_SLACK + Self::BOX_SLACK / 4.0) * x;
-        // An empty scene (infinite bounds) or overflow: no margin is needed, or none would help.
+        // An empty scene (infinite bounds: no box to test) or an overflowing `X`: the interval
+        // is not narrowed at all, by the largest finite margin (not ∞, so that `tmin - m` is
+        // never `∞ - ∞`). A margin of 0 there let a box entered a few ulps before a hit at
+        // t ≈ 1e37 be culled by it: the slab distances' rounding, relative to `t`, is then
+        // what `X` would have bounded.
         let box_margin = if margin.is_finite() {
             margin.max(f32::MIN_POSITIVE)
         } else {
-            0.0
+            f32::MAX
         };
         let slab_margin = if x.is_finite() {
             (Self::BOX_SLACK / 2.0 * x).max(f32::MIN_POSITIVE)

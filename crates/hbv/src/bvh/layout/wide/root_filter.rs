@@ -81,7 +81,7 @@ pub(super) fn all_candidates(_: &[Ray; 8], _: &Aabb, _: f32) -> u32 {
 /// ```text
 ///   inv = 1 / d  (NaN where d ≠ 0 and 1/d overflows)
 ///   x = (max |o| + scene_size) · (1 / max |d|)
-///   m = max(2^-126, (2^-18 + 2^-20) x) if finite, else 0        (box margin)
+///   m = max(2^-126, (2^-18 + 2^-20) x) if finite, else f32::MAX (box margin)
 ///   s = max(2^-126, 2^-19 x) if x is finite, else ∞              (slab margin)
 ///   near = max over axes of (near plane − o) inv, and tmin − m
 ///   far = min over axes of (far plane − o) inv, and tmax + m;   met if near ≤ far + s
@@ -163,7 +163,11 @@ pub(super) unsafe fn root_candidates_avx(rays: &[Ray; 8], bounds: &Aabb, scene_s
             _mm256_set1_ps(PreparedRay::BOX_SLACK + PreparedRay::BOX_SLACK / 4.0),
             x,
         );
-        let box_margin = _mm256_and_ps(finite(margin), _mm256_max_ps(margin, tiny));
+        let box_margin = _mm256_blendv_ps(
+            _mm256_set1_ps(f32::MAX),
+            _mm256_max_ps(margin, tiny),
+            finite(margin),
+        );
         let slab_margin = _mm256_blendv_ps(
             infinity,
             _mm256_max_ps(
