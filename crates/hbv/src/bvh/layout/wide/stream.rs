@@ -84,18 +84,19 @@ impl<const W: usize> WideLayout<W> {
     }
 
     /// Any-hit answers of `rays` into `occluders` (the blocking triangle, or `None`), as
-    /// [`WideLayout::closest_hits_with`] takes them; `visit` is [`any_leaf_visit!`]'s closure.
+    /// [`WideLayout::closest_hits_with`] takes them, children nearest first or in lane order;
+    /// `visit` is [`any_leaf_visit!`]'s closure.
     #[inline(always)]
-    pub(super) fn any_hits_with<K: BoxKernel<W>>(
+    pub(super) fn any_hits_with<K: BoxKernel<W>, const NEAREST_FIRST: bool>(
         &self,
         rays: &[Ray],
         occluders: &mut [Option<u32>],
         visit: impl Fn(&Self, usize, usize, &mut PreparedRay, &mut Option<u32>) -> bool,
     ) {
         if self.interleave {
-            self.run_stream::<K, _, false>(rays, occluders, visit);
+            self.run_stream::<K, _, NEAREST_FIRST>(rays, occluders, visit);
         } else {
-            self.run_in_turn::<K, _, false>(rays, occluders, visit);
+            self.run_in_turn::<K, _, NEAREST_FIRST>(rays, occluders, visit);
         }
     }
 
@@ -344,6 +345,25 @@ mod tests {
         prop::collection::vec(ray, 0..70)
     }
 
+    /// Rays from a sphere around the torus's box (nearest first in any-hit batches) and from
+    /// points inside it (lane order), aimed at random points of the box.
+    fn rays_from(outside: bool) -> impl Strategy<Value = Vec<Ray>> {
+        let c = || -1.0f32..1.0;
+        let ray = ((c(), c(), c()), (c(), c(), c()), 0.5f32..1.0).prop_map(
+            move |((ox, oy, oz), (tx, ty, tz), r)| {
+                let o = Vec3::new(ox, oy, oz);
+                let origin = if outside {
+                    o.try_normalize().unwrap_or(Vec3::X) * (4.0 + 4.0 * r)
+                } else {
+                    o * Vec3::new(1.5, 1.5, 0.4) + Vec3::new(0.1, -0.2, 0.3)
+                };
+                let target = Vec3::new(tx * 2.0, ty * 2.0, tz * 0.5);
+                Ray::new(origin, target - origin)
+            },
+        );
+        prop::collection::vec(ray, 1..70)
+    }
+
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(200))]
 
@@ -351,6 +371,21 @@ mod tests {
         fn interleaved_batches_answer_like_single_rays(rays in rays()) {
             check::<4>(&rays)?;
             check::<8>(&rays)?;
+        }
+
+        /// Any-hit batches take children nearest first when most rays start outside the
+        /// tree's box, in lane order otherwise: both answer as single rays do.
+        #[test]
+        fn batches_from_outside_and_inside_answer_like_single_rays(
+            outside in rays_from(true),
+            inside in rays_from(false),
+        ) {
+            let mesh = torus(Vec3::new(0.1, -0.2, 0.3), 1.5, 0.5, 24, 12);
+            let layout = WideLayout::<8>::new(&InsertionBuilder::default().build(&mesh), &mesh);
+            prop_assert!(layout.mostly_from_outside(&outside));
+            prop_assert!(!layout.mostly_from_outside(&inside));
+            check::<8>(&outside)?;
+            check::<8>(&inside)?;
         }
     }
 }
