@@ -109,6 +109,13 @@ impl<const W: usize> WideLayout<W> {
         layout
     }
 
+    /// Whether the traversals run the AVX kernels (8-wide nodes on a CPU with AVX): callers
+    /// outside this module that pass a leaf visitor write it in a function compiled with AVX
+    /// then (see `wide_all_hits.rs`).
+    pub(super) fn traverses_with_avx(&self) -> bool {
+        W == 8 && self.use_avx
+    }
+
     /// Bytes of node and triangle data.
     pub fn memory_bytes(&self) -> usize {
         self.nodes.len() * std::mem::size_of::<WideNode<W>>()
