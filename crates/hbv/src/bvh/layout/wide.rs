@@ -109,9 +109,9 @@ impl<const W: usize> WideLayout<W> {
         layout
     }
 
-    /// Whether the traversals run the AVX kernels (8-wide nodes on a CPU with AVX): callers
-    /// outside this module that pass a leaf visitor write it in a function compiled with AVX
-    /// then (see `wide_all_hits.rs`).
+    /// Whether the traversals run the AVX kernels (8-wide nodes on a CPU with AVX; only then is
+    /// an AVX entry point called). Callers outside this module that pass a leaf visitor write it
+    /// in a function compiled with AVX then (see `wide_all_hits.rs`).
     pub(super) fn traverses_with_avx(&self) -> bool {
         W == 8 && self.use_avx
     }
@@ -524,10 +524,19 @@ impl<const W: usize> WideLayout<W> {
         found
     }
 
-    /// The order in which an any-hit batch takes a node's children: nearest first for rays
-    /// from outside the tree's box, in lane order (no sorting) for rays from inside it.
-    /// (Single rays keep lane order: the renderer's shadow rays leave surfaces, and choosing
-    /// per ray cost their kernel 2% more instructions.)
+    /// Whether `origin` lies outside the tree's box (or the tree is empty).
+    #[inline(always)]
+    fn starts_outside_tree(&self, origin: glam::Vec3) -> bool {
+        self.root.as_ref().is_some_and(|(_, bounds, _)| {
+            !(bounds.min.cmple(origin).all() && origin.cmple(bounds.max).all())
+        })
+    }
+
+    /// The order in which an any-hit batch takes a node's children: nearest first when most of
+    /// its rays start outside the tree's box, judged from 16 of them spread over the batch, in
+    /// lane order (no sorting) otherwise. One order for the batch, so that its loop does not
+    /// choose per step; a sample is enough for a choice of speed (checking every ray cost 25
+    /// instructions a ray).
     ///
     /// Which child holds a blocker first cannot be known, and sorting costs instructions. A
     /// ray from outside (a camera's, a sensor's, sunlight) meets the surface facing it first,
@@ -535,28 +544,14 @@ impl<const W: usize> WideLayout<W> {
     /// mesh +1–6% (BENCHMARKS.md, session 10). A ray that leaves a surface (a shadow or bounce
     /// ray) meets its blockers in no such order, and there the sorting made it 16–22% slower.
     /// Either order finds a blocker if there is one: only the speed, and which blocker is
-    /// reported, depend on it.
-    #[inline(always)]
-    fn any_hit_nearest_first(&self, origin: glam::Vec3) -> bool {
-        self.root.as_ref().is_some_and(|(_, bounds, _)| {
-            !(bounds.min.cmple(origin).all() && origin.cmple(bounds.max).all())
-        })
-    }
-
-    /// Whether most of a batch's rays start outside the tree's box, judged from 16 of them
-    /// spread over the batch: the batch then takes every ray's children nearest first
-    /// ([`WideLayout::any_hit_nearest_first`]; one order for the batch, so that its loop does
-    /// not choose per step). A sample is enough for a choice of speed, and checking every
-    /// ray cost 25 instructions a ray.
+    /// reported, depend on it. (Single rays keep lane order: the renderer's shadow rays leave
+    /// surfaces, and choosing per ray cost their kernel 2% more instructions.)
     #[inline(always)]
     fn mostly_from_outside(&self, rays: &[Ray]) -> bool {
         const SAMPLE: usize = 16;
         let stride = rays.len().div_ceil(SAMPLE).max(1);
         let (sampled, outside) = rays.iter().step_by(stride).fold((0, 0), |(n, out), r| {
-            (
-                n + 1,
-                out + usize::from(self.any_hit_nearest_first(r.origin)),
-            )
+            (n + 1, out + usize::from(self.starts_outside_tree(r.origin)))
         });
         2 * outside > sampled
     }
@@ -670,7 +665,7 @@ impl<const W: usize> WideLayout<W> {
         mut visit: impl FnMut(&[TrianglePacket], &PreparedRay),
     ) {
         #[cfg(target_arch = "x86_64")]
-        if W == 8 && self.use_avx {
+        if self.traverses_with_avx() {
             // SAFETY: `use_avx` is set only when the CPU reported AVX.
             return unsafe { self.for_each_leaf_reached_avx(ray, &mut visit) };
         }
@@ -704,7 +699,7 @@ impl<const W: usize> WideLayout<W> {
 impl<const W: usize> TraversalKernel for WideLayout<W> {
     fn closest_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
         #[cfg(target_arch = "x86_64")]
-        if W == 8 && self.use_avx {
+        if self.traverses_with_avx() {
             // SAFETY: `use_avx` is set only when the CPU reported AVX.
             return unsafe { self.closest_hit_avx(ray, counter) };
         }
@@ -717,7 +712,7 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
 
     fn any_hit_prim<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
         #[cfg(target_arch = "x86_64")]
-        if W == 8 && self.use_avx {
+        if self.traverses_with_avx() {
             // SAFETY: `use_avx` is set only when the CPU reported AVX.
             return unsafe { self.any_hit_avx(ray, counter) };
         }
@@ -735,18 +730,18 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
 
     fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         #[cfg(target_arch = "x86_64")]
-        if W == 8 && self.use_avx {
+        if self.traverses_with_avx() {
             // SAFETY: `use_avx` is set only when the CPU reported AVX.
             return unsafe { self.closest_hits_avx(rays, hits) };
         }
-        self.closest_hits_with::<DefaultBoxes>(rays, hits, stream::closest_leaf_visit!())
+        self.trace_batch::<DefaultBoxes, _, true>(rays, hits, stream::closest_leaf_visit!())
     }
 
     fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
         // Chosen before the kernel is entered, so that each kernel holds one traversal loop.
         let nearest_first = self.mostly_from_outside(rays);
         #[cfg(target_arch = "x86_64")]
-        if W == 8 && self.use_avx {
+        if self.traverses_with_avx() {
             // SAFETY: `use_avx` is set only when the CPU reported AVX.
             return unsafe {
                 if nearest_first {
@@ -758,9 +753,9 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
         }
         let visit = stream::any_leaf_visit!();
         if nearest_first {
-            self.any_hits_with::<DefaultBoxes, true>(rays, occluders, visit)
+            self.trace_batch::<DefaultBoxes, _, true>(rays, occluders, visit)
         } else {
-            self.any_hits_with::<DefaultBoxes, false>(rays, occluders, visit)
+            self.trace_batch::<DefaultBoxes, _, false>(rays, occluders, visit)
         }
     }
 }
@@ -770,7 +765,7 @@ impl<const W: usize> WideLayout<W> {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     unsafe fn closest_hits_avx(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        self.closest_hits_with::<AvxBoxes>(rays, hits, stream::closest_leaf_visit!())
+        self.trace_batch::<AvxBoxes, _, true>(rays, hits, stream::closest_leaf_visit!())
     }
 
     /// The any-hit batch compiled with AVX, children nearest first or in lane order. Call
@@ -782,6 +777,6 @@ impl<const W: usize> WideLayout<W> {
         rays: &[Ray],
         occluders: &mut [Option<u32>],
     ) {
-        self.any_hits_with::<AvxBoxes, NEAREST_FIRST>(rays, occluders, stream::any_leaf_visit!())
+        self.trace_batch::<AvxBoxes, _, NEAREST_FIRST>(rays, occluders, stream::any_leaf_visit!())
     }
 }

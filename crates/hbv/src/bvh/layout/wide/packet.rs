@@ -286,7 +286,7 @@ impl<const W: usize> WideLayout<W> {
         counter: &mut C,
     ) {
         #[cfg(target_arch = "x86_64")]
-        if W == 8 && self.use_avx {
+        if self.traverses_with_avx() {
             // SAFETY: `use_avx` is set only when the CPU reported AVX.
             return unsafe { self.closest_hit_packet_avx(rays, hits, counter) };
         }

@@ -18,7 +18,6 @@ use super::traversal::{Step, Traversal};
 use super::{BoxKernel, WideLayout};
 use crate::bvh::layout::wide_kernels::Lanes;
 use crate::geometry::{PreparedRay, Ray};
-use crate::query::Hit;
 use crate::stats::NoCount;
 use std::mem::MaybeUninit;
 
@@ -66,37 +65,21 @@ macro_rules! any_leaf_visit {
 pub(super) use any_leaf_visit;
 
 impl<const W: usize> WideLayout<W> {
-    /// Closest hits of `rays` into `hits` (same length): [`STREAMS`] rays interleaved, or, in a
-    /// layout that does not interleave, each ray in turn. `visit` is
-    /// [`closest_leaf_visit!`]'s closure, written at the caller.
+    /// Answers of `rays` into `answers` (same length): [`STREAMS`] rays interleaved, or, in a
+    /// layout that does not interleave, each ray in turn; children nearest first (closest hit,
+    /// and any hit from outside the tree) or in lane order. `visit` is
+    /// [`closest_leaf_visit!`]'s or [`any_leaf_visit!`]'s closure, written at the caller.
     #[inline(always)]
-    pub(super) fn closest_hits_with<K: BoxKernel<W>>(
+    pub(super) fn trace_batch<K: BoxKernel<W>, A, const NEAREST_FIRST: bool>(
         &self,
         rays: &[Ray],
-        hits: &mut [Option<Hit>],
-        visit: impl Fn(&Self, usize, usize, &mut PreparedRay, &mut Option<Hit>) -> bool,
+        answers: &mut [Option<A>],
+        visit: impl Fn(&Self, usize, usize, &mut PreparedRay, &mut Option<A>) -> bool,
     ) {
         if self.interleave {
-            self.run_stream::<K, _, true>(rays, hits, visit);
+            self.run_stream::<K, _, NEAREST_FIRST>(rays, answers, visit);
         } else {
-            self.run_in_turn::<K, _, true>(rays, hits, visit);
-        }
-    }
-
-    /// Any-hit answers of `rays` into `occluders` (the blocking triangle, or `None`), as
-    /// [`WideLayout::closest_hits_with`] takes them, children nearest first or in lane order;
-    /// `visit` is [`any_leaf_visit!`]'s closure.
-    #[inline(always)]
-    pub(super) fn any_hits_with<K: BoxKernel<W>, const NEAREST_FIRST: bool>(
-        &self,
-        rays: &[Ray],
-        occluders: &mut [Option<u32>],
-        visit: impl Fn(&Self, usize, usize, &mut PreparedRay, &mut Option<u32>) -> bool,
-    ) {
-        if self.interleave {
-            self.run_stream::<K, _, NEAREST_FIRST>(rays, occluders, visit);
-        } else {
-            self.run_in_turn::<K, _, NEAREST_FIRST>(rays, occluders, visit);
+            self.run_in_turn::<K, _, NEAREST_FIRST>(rays, answers, visit);
         }
     }
 
