@@ -48,5 +48,11 @@ pub mod proximity;
 
 pub use all_hits::AllHits;
 
+/// The property tests' case counts (`PROPTEST_CASES`, `HBV_PROPTEST_SCALE`), one file for these
+/// unit tests and the integration tests.
+#[cfg(test)]
+#[path = "../tests/common/cases.rs"]
+mod proptest_cases;
+
 /// The vector types of the API (`Vec3`), re-exported so that users need not match its version.
 pub use glam;

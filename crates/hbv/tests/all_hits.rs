@@ -86,7 +86,7 @@ fn assert_all_hits_agree(
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(300))]
+    #![proptest_config(common::cases(300))]
 
     #[test]
     fn soup_all_hits_equal_brute_force((mesh, rays) in mesh_and_rays(soup()), order in order(), leaf in 1usize..9) {

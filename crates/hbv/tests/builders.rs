@@ -141,7 +141,7 @@ fn assert_binary_and_tight(tree: &BuildTree, bounds: &[Aabb]) -> Result<(), Test
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(1000))]
+    #![proptest_config(common::cases(1000))]
 
     #[test]
     fn soup_trees_are_valid_and_answer_like_brute_force(

@@ -292,7 +292,7 @@ fn well_sealed_files_that_describe_a_broken_tree_are_refused() {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(32))]
+    #![proptest_config(common::cases(32))]
 
     #[test]
     fn any_saved_tree_answers_as_before((mesh, rays) in mesh_and_rays(soup()), leaf in 1u32..5) {

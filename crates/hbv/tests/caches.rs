@@ -79,7 +79,7 @@ fn check(mesh: &TriangleMesh, rays: &[Ray]) -> Result<(), TestCaseError> {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(200))]
+    #![proptest_config(common::cases(200))]
 
     #[test]
     fn caches_never_change_answers_on_soups((mesh, rays) in mesh_and_rays(soup())) {

@@ -102,7 +102,7 @@ fn apply(bvh: &mut DynamicBvh, step: &Step) {
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(128))]
+    #![proptest_config(common::cases(128))]
 
     #[test]
     fn every_step_keeps_the_tree_valid_and_equal_to_brute_force(

@@ -40,7 +40,7 @@ fn check(mesh: &TriangleMesh, config: GridConfig, rays: &[Ray]) -> Result<(), Te
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(1000))]
+    #![proptest_config(common::cases(1000))]
 
     #[test]
     fn soup_equals_brute_force((mesh, rays) in mesh_and_rays(soup()), config in config()) {

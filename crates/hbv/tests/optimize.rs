@@ -141,7 +141,7 @@ fn optimize_collapse_and_trace(
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(200))]
+    #![proptest_config(common::cases(200))]
 
     #[test]
     fn optimized_soups_answer_as_brute_force(

@@ -241,7 +241,7 @@ fn column_rows<P: QueryPoints + ?Sized>(search: &ClosestPointTree, points: &P) -
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(200))]
+    #![proptest_config(common::cases(200))]
 
     #[test]
     fn soup_closest_point_equals_brute_force((mesh, points) in mesh_and_points(soup()), order in order(), leaf in 1usize..9) {

@@ -46,7 +46,7 @@ fn assert_all_layouts_agree(
 }
 
 proptest! {
-    #![proptest_config(ProptestConfig::with_cases(1000))]
+    #![proptest_config(common::cases(1000))]
 
     #[test]
     fn soup_closest_and_any_hit_equal_brute_force((mesh, rays) in mesh_and_rays(soup()), order in order(), leaf in 1usize..5) {

@@ -101,6 +101,8 @@ mod tests {
     }
 
     proptest! {
+        #![proptest_config(crate::proptest_cases::cases(256))]
+
         /// Random faces over a small lattice (so that edges are shared, by several triangles or
         /// none, and some triangles are degenerate), vertices duplicated at random and some
         /// written with negative zeros: the count equals the map's.

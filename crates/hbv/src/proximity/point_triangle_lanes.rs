@@ -455,6 +455,8 @@ mod tests {
     }
 
     proptest! {
+        #![proptest_config(crate::proptest_cases::cases(256))]
+
         /// Random triangles (slivers and axis-aligned ones among them) and points in every
         /// region, near and far, at scales from 10⁻⁴ to 10¹⁸.
         #[test]

@@ -239,6 +239,8 @@ mod tests {
     }
 
     proptest! {
+        #![proptest_config(crate::proptest_cases::cases(256))]
+
         /// Both bounds stay at or below the threshold of the exact f64 squared distance: a
         /// triangle is never pruned against a best equal to its own distance.
         #[test]

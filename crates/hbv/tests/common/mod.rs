@@ -10,6 +10,9 @@ use hbv::mesh::procedural::torus;
 use hbv::{Accelerator, BruteForce, Hit, TriangleMesh};
 use proptest::prelude::*;
 
+mod cases;
+pub use cases::cases;
+
 /// Asserts that `accel` and brute force agree on every ray: closest hits identical (same `t`,
 /// same `prim` under the shared tie rule, same barycentrics), any-hit identical.
 pub fn assert_agrees(

@@ -307,7 +307,7 @@ pub(crate) mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(2000))]
+        #![proptest_config(crate::proptest_cases::cases(2000))]
 
         #[test]
         fn box_kernels_never_lose_a_box_and_agree_with_their_scalar_twin(

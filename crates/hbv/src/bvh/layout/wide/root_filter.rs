@@ -268,7 +268,7 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(3000))]
+        #![proptest_config(crate::proptest_cases::cases(3000))]
 
         #[test]
         fn the_filter_decides_as_the_scalar_root_test(
@@ -304,7 +304,7 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(3000))]
+        #![proptest_config(crate::proptest_cases::cases(3000))]
 
         /// Rays whose interval ends just before the root box, or starts just after it, within
         /// a few times the margins: where the margins decide.

@@ -348,7 +348,7 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(200))]
+        #![proptest_config(crate::proptest_cases::cases(200))]
 
         #[test]
         fn interleaved_batches_answer_like_single_rays(rays in rays()) {

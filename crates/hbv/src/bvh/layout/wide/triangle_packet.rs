@@ -320,7 +320,7 @@ mod tests {
     }
 
     proptest! {
-        #![proptest_config(ProptestConfig::with_cases(3000))]
+        #![proptest_config(crate::proptest_cases::cases(3000))]
 
         #[test]
         fn packet_test_decides_as_the_scalar_test(ray in ray_strategy(), pts in prop::collection::vec((-2.0f32..2.0, -2.0f32..2.0, prop_oneof![Just(0.0f32), -2.0f32..2.0]), 12)) {
