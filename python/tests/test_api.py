@@ -84,7 +84,8 @@ def test_dtypes_and_strides_give_the_same_answers(sphere):
     assert want["hit"].dtype == bool and want["u"].dtype == np.float32
     # float64 read in place (C order) or converted (Fortran order, strided), float32 likewise.
     for oo, dd in [(o, d), (np.asfortranarray(o32), d32), (o32, np.repeat(d32, 2, 0)[::2]),
-                   (np.asfortranarray(o), np.repeat(d, 2, 0)[::2]), (o32.tolist(), d32.tolist())]:
+                   (np.asfortranarray(o), np.repeat(d, 2, 0)[::2]), (o32.tolist(), d32.tolist()),
+                   (o.astype(">f8"), d32.astype(">f4"))]:
         got = bvh.intersect(oo, dd)
         for k in want:
             np.testing.assert_array_equal(got[k], want[k])
@@ -94,6 +95,12 @@ def test_dtypes_and_strides_give_the_same_answers(sphere):
     for k in want:
         np.testing.assert_array_equal(got[k], want[k])
     np.testing.assert_array_equal(bvh.contains(o), bvh.contains(o32))
+    # Floats in neither native float32 nor float64 are read as float64: float16 exactly.
+    h = o.astype(np.float16)
+    for k, column in bvh.intersect(h, d32).items():
+        np.testing.assert_array_equal(column, bvh.intersect(h.astype(np.float32), d32)[k])
+    for k, column in bvh.closest_point(o.astype(">f8")).items():
+        np.testing.assert_array_equal(column, bvh.closest_point(o)[k])
 
 
 def test_misses_and_invalid_rays_follow_rays_md(sphere):

@@ -123,7 +123,8 @@ fn shape_text(shape: &[usize]) -> String {
 
 /// Reads a float array of shape `(N, 3)` (or `(N,)` with `columns = None`); `rows` fixes N.
 /// C-contiguous float32 and float64 arrays are borrowed; strided ones are copied in their own
-/// precision, integer arrays (and lists of them) as float64.
+/// precision; integer arrays (and lists of them) and other floats (float16, byte-swapped, long
+/// double) as float64.
 pub fn float_array<'py>(
     name: &str,
     obj: &Bound<'py, PyAny>,
@@ -156,8 +157,12 @@ pub fn float_array<'py>(
         }
     }
     let dtype = array.dtype();
-    // Integers (as from a Python list of ints) are converted like float64.
-    let array = if dtype.kind() == b'i' || dtype.kind() == b'u' {
+    // Integers (as from a Python list of ints) are converted like float64, and so are the
+    // floats read in neither native float32 nor float64: float16 and byte-swapped floats
+    // (`np.fromfile(f, ">f8")`) exactly, long double rounded to float64.
+    let native = array.cast::<PyArrayDyn<f32>>().is_ok() || array.cast::<PyArrayDyn<f64>>().is_ok();
+    let array = if dtype.kind() == b'i' || dtype.kind() == b'u' || (dtype.kind() == b'f' && !native)
+    {
         array
             .call_method1("astype", ("float64",))?
             .cast::<PyUntypedArray>()?
