@@ -12,14 +12,21 @@
 use proptest::test_runner::Config;
 
 /// The configuration of a property test that runs `cases` cases by default (module notes).
+/// The limits on rejected inputs (`prop_assume!`) grow with the case count, so that a soak run
+/// is not aborted for rejecting as large a share of its inputs as a default run.
 pub fn cases(cases: u32) -> Config {
+    let scaled = scaled_cases(
+        cases,
+        std::env::var("PROPTEST_CASES").ok().as_deref(),
+        std::env::var("HBV_PROPTEST_SCALE").ok().as_deref(),
+    );
+    let growth = scaled.div_ceil(cases.max(1)).max(1);
+    let default = Config::default();
     Config {
-        cases: scaled_cases(
-            cases,
-            std::env::var("PROPTEST_CASES").ok().as_deref(),
-            std::env::var("HBV_PROPTEST_SCALE").ok().as_deref(),
-        ),
-        ..Config::default()
+        cases: scaled,
+        max_global_rejects: default.max_global_rejects.saturating_mul(growth),
+        max_local_rejects: default.max_local_rejects.saturating_mul(growth),
+        ..default
     }
 }
 
