@@ -143,6 +143,9 @@ def test_threads_do_not_change_answers(sphere):
             np.testing.assert_array_equal(
                 bvh.occluded(o, d, threads=threads), bvh.occluded(o, d, threads=1))
         np.testing.assert_array_equal(bvh.count(o, d, threads=1), bvh.count(o, d))
+        # intersect_all on one thread runs on the calling thread, not in a pool: same lists.
+        for got, want in zip(bvh.intersect_all(o, d, threads=1), bvh.intersect_all(o, d)):
+            np.testing.assert_array_equal(got, want)
 
 
 def test_every_builder_and_layout_gives_the_same_answers(triangle_soup):

@@ -257,6 +257,10 @@ impl PyBvh {
         let points = points.values();
         let (mut point, mut distance) = (vec![[0.0f64; 3]; n], vec![0.0f64; n]);
         let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0f64; n], vec![0.0f64; n]);
+        // One thread is the calling thread itself (`closest_points_into_here`), not a pool of
+        // one to wake; so is one run of points whatever `threads` says (`closest_points_into`
+        // answers it in place).
+        let one_thread = threads.is_some_and(|t| t.get() == 1);
         py.detach(|| {
             let answer = || {
                 let columns = ClosestPointColumns {
@@ -267,14 +271,22 @@ impl PyBvh {
                     v: &mut v,
                 };
                 let tree = self.closest_tree();
-                match points {
-                    FloatSlice::F32(values) => tree.closest_points_into(&rows_of(values), columns),
-                    FloatSlice::F64(values) => tree.closest_points_into(&rows_of(values), columns),
+                match (points, one_thread) {
+                    (FloatSlice::F32(values), false) => {
+                        tree.closest_points_into(&rows_of(values), columns)
+                    }
+                    (FloatSlice::F64(values), false) => {
+                        tree.closest_points_into(&rows_of(values), columns)
+                    }
+                    (FloatSlice::F32(values), true) => {
+                        tree.closest_points_into_here(&rows_of(values), columns)
+                    }
+                    (FloatSlice::F64(values), true) => {
+                        tree.closest_points_into_here(&rows_of(values), columns)
+                    }
                 }
             };
-            // One run of points is answered on the calling thread whatever `threads` says
-            // (`closest_points_into`): no pool to hand it to.
-            run_here_or_on_threads(n <= ClosestPointTree::RUN, threads, answer)
+            run_here_or_on_threads(one_thread || n <= ClosestPointTree::RUN, threads, answer)
         })?;
         let point = point.into_flattened();
         let out = PyDict::new(py);

@@ -237,6 +237,16 @@ pub fn every_hit<'py, 's, A: AllHits + ?Sized + 's>(
 ) -> PyResult<Bound<'py, PyTuple>> {
     let batch = args.batch();
     let hits = py.detach(|| {
+        if threads.is_some_and(|t| t.get() == 1) {
+            // One thread is the calling thread itself, not a pool of one to wake.
+            let structure = structure();
+            let (mut all, mut hits) = (Vec::new(), Vec::new());
+            for i in 0..batch.len {
+                structure.all_hits(&batch.ray(i), &mut hits);
+                all.extend(hits.iter().map(|&h| (i as u32, h)));
+            }
+            return Ok(all);
+        }
         run_on_threads(threads, || {
             let rays = batch.rays();
             structure().all_hits_batch(&rays)

@@ -1,10 +1,10 @@
 //! `threads=`: how many threads a query uses. `None`: one per core; `1`: the calling thread
 //! itself, with no hand-off to a pool thread (on a busy machine each hand-off waits for the
-//! scheduler, which can cost more than a small batch); `n`: `n` threads. Row-by-row queries
-//! ([`fill_rows`]) run on the calling thread and a pool of `n - 1` threads; the others
-//! ([`run_on_threads`]: `closest_point`'s sorted batches, `intersect_all`) on a pool of `n`
-//! threads (the global rayon pool for `None`) while the calling thread waits. A pool of `n`
-//! threads is started on first use and kept for later calls.
+//! scheduler, which can cost more than a small batch), for every query; `n`: `n` threads.
+//! Row-by-row queries ([`fill_rows`]) run on the calling thread and a pool of `n - 1` threads;
+//! the others ([`run_on_threads`]: `closest_point`'s sorted batches, `intersect_all`) on a pool
+//! of `n` threads (the global rayon pool for `None`) while the calling thread waits. A pool of
+//! `n` threads is started on first use and kept for later calls.
 
 use std::sync::{Arc, Mutex};
 

@@ -164,8 +164,8 @@ fn assert_closest_points_agree_with(
                 p
             );
         }
-        // A batch longer than one run (answered in Morton order, in parallel, rather than on
-        // the calling thread in the points' order): the points repeated, the same rows.
+        // A batch longer than one run (answered in Morton order, in parallel or in turn on the
+        // calling thread, rather than in the points' order): the points repeated, the same rows.
         if !points.is_empty() {
             let n = points.len();
             let long: Vec<_> = as_f64
@@ -197,6 +197,14 @@ fn assert_closest_points_agree_with(
                     "f32 run",
                     column_rows(&search, &FlatPoints::new(&flat32[..3 * n]).unwrap()),
                 ),
+                (
+                    "calling-thread",
+                    column_rows_with(&search, long.as_slice(), true),
+                ),
+                (
+                    "calling-thread f32",
+                    column_rows_with(&search, &FlatPoints::new(&flat32).unwrap(), true),
+                ),
             ] {
                 for (j, row) in got.into_iter().enumerate() {
                     prop_assert_eq!(row, rows[j % n], "{} {} rows: row {}", name, form, j);
@@ -222,19 +230,30 @@ fn row_bits((q, d, k, u, v): ([f64; 3], f64, i64, f64, f64)) -> RowBits {
 
 /// `search.closest_points_into(points)`, row by row.
 fn column_rows<P: QueryPoints + ?Sized>(search: &ClosestPointTree, points: &P) -> Vec<RowBits> {
+    column_rows_with(search, points, false)
+}
+
+/// [`column_rows`], or with `here` the calling-thread form `closest_points_into_here`.
+fn column_rows_with<P: QueryPoints + ?Sized>(
+    search: &ClosestPointTree,
+    points: &P,
+    here: bool,
+) -> Vec<RowBits> {
     let n = points.count();
     let (mut point, mut distance) = (vec![[0.0; 3]; n], vec![0.0; n]);
     let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0; n], vec![0.0; n]);
-    search.closest_points_into(
-        points,
-        ClosestPointColumns {
-            point: &mut point,
-            distance: &mut distance,
-            prim: &mut prim,
-            u: &mut u,
-            v: &mut v,
-        },
-    );
+    let columns = ClosestPointColumns {
+        point: &mut point,
+        distance: &mut distance,
+        prim: &mut prim,
+        u: &mut u,
+        v: &mut v,
+    };
+    if here {
+        search.closest_points_into_here(points, columns);
+    } else {
+        search.closest_points_into(points, columns);
+    }
     (0..n)
         .map(|i| row_bits((point[i], distance[i], prim[i], u[i], v[i])))
         .collect()

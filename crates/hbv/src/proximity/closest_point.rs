@@ -3,6 +3,7 @@
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
+use super::batch_threads::{for_each_chunk, map_collect, Threads};
 use super::box_bound::{prune_threshold, rounding_margin, PointBracket};
 use super::candidate_grid::{
     CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, Located, NearestTriangles,
@@ -111,6 +112,47 @@ fn write_row(found: Option<ClosestPoint>, k: usize, (point, distance, prim, u, v
             prim[k] = -1;
             u[k] = 0.0;
             v[k] = 0.0;
+        }
+    }
+}
+
+/// Calls `f(r, rows of run r)` for every run of [`ClosestPointTree::RUN`] rows of `columns`
+/// (the last one shorter): in parallel on the current pool, or in turn on the calling thread.
+fn for_each_column_run(
+    threads: Threads,
+    (point, distance, prim, u, v): ColumnRun<'_>,
+    f: impl Fn(usize, ColumnRun<'_>) + Sync + Send,
+) {
+    const RUN: usize = ClosestPointTree::RUN;
+    match threads {
+        Threads::Pool => {
+            let runs = (0..point.len().div_ceil(RUN)).into_par_iter();
+            let columns = (
+                point.par_chunks_mut(RUN),
+                distance.par_chunks_mut(RUN),
+                prim.par_chunks_mut(RUN),
+                u.par_chunks_mut(RUN),
+                v.par_chunks_mut(RUN),
+            );
+            (columns, runs)
+                .into_par_iter()
+                .for_each(|(columns, r)| f(r, columns));
+        }
+        Threads::Here => {
+            let rows = point.len();
+            for r in 0..rows.div_ceil(RUN) {
+                let at = r * RUN..rows.min(r * RUN + RUN);
+                f(
+                    r,
+                    (
+                        &mut point[at.clone()],
+                        &mut distance[at.clone()],
+                        &mut prim[at.clone()],
+                        &mut u[at.clone()],
+                        &mut v[at],
+                    ),
+                );
+            }
         }
     }
 }
@@ -254,7 +296,7 @@ impl ClosestPointTree {
         &self,
         points: &[DVec3],
     ) -> Vec<(Option<ClosestPoint>, SearchTally)> {
-        let order: Vec<(u64, usize)> = morton_order(points)
+        let order: Vec<(u64, usize)> = morton_order(points, Threads::Here)
             .into_iter()
             .map(|key| (key, key as u32 as usize))
             .collect();
@@ -330,7 +372,7 @@ impl ClosestPointTree {
                 .for_each(|(out, run)| self.answer_run(run, |k, found| out[k] = found));
             return out;
         }
-        let (order, sorted) = self.search_in_morton_order(points);
+        let (order, sorted) = self.search_in_morton_order(points, Threads::Pool);
         let mut out = vec![None; points.len()];
         for (found, &key) in sorted.into_iter().zip(&order) {
             out[key as u32 as usize] = found;
@@ -348,6 +390,26 @@ impl ClosestPointTree {
         &self,
         points: &P,
         out: ClosestPointColumns<'_>,
+    ) {
+        self.closest_points_into_with(points, out, Threads::Pool);
+    }
+
+    /// [`ClosestPointTree::closest_points_into`] on the calling thread alone, with no rayon
+    /// task: the same answers, for a caller that wants one thread and should not wait for a
+    /// pool's thread to wake (`threads=1` from Python).
+    pub fn closest_points_into_here<P: QueryPoints + ?Sized>(
+        &self,
+        points: &P,
+        out: ClosestPointColumns<'_>,
+    ) {
+        self.closest_points_into_with(points, out, Threads::Here);
+    }
+
+    fn closest_points_into_with<P: QueryPoints + ?Sized>(
+        &self,
+        points: &P,
+        out: ClosestPointColumns<'_>,
+        threads: Threads,
     ) {
         let n = points.count();
         let ClosestPointColumns {
@@ -382,50 +444,40 @@ impl ClosestPointTree {
             }
             return;
         }
-        let columns = (
-            point.par_chunks_mut(Self::RUN),
-            distance.par_chunks_mut(Self::RUN),
-            prim.par_chunks_mut(Self::RUN),
-            u.par_chunks_mut(Self::RUN),
-            v.par_chunks_mut(Self::RUN),
-        );
+        let columns = (point, distance, prim, u, v);
         if self.grid.is_some() {
-            let runs = (0..n.div_ceil(Self::RUN)).into_par_iter();
-            (columns, runs)
-                .into_par_iter()
-                .for_each(|((point, distance, prim, u, v), r)| {
-                    let first = r * Self::RUN;
-                    let len = Self::RUN.min(n - first);
-                    let run = run_of(points, first, len);
-                    self.answer_run(&run[..len], |k, found| {
-                        write_row(
-                            found,
-                            k,
-                            (&mut *point, &mut *distance, &mut *prim, &mut *u, &mut *v),
-                        )
-                    })
-                });
+            for_each_column_run(threads, columns, |r, (point, distance, prim, u, v)| {
+                let first = r * Self::RUN;
+                let len = point.len();
+                let run = run_of(points, first, len);
+                self.answer_run(&run[..len], |k, found| {
+                    write_row(
+                        found,
+                        k,
+                        (&mut *point, &mut *distance, &mut *prim, &mut *u, &mut *v),
+                    )
+                })
+            });
             return;
         }
-        let (order, sorted) = self.search_in_morton_order(points);
-        // Where each point's answer is in `sorted`; then each column is gathered in parallel.
+        let (order, sorted) = self.search_in_morton_order(points, threads);
+        // Where each point's answer is in `sorted`; then each column is gathered run by run.
         let mut rank = vec![0u32; n];
         for (j, &key) in order.iter().enumerate() {
             rank[key as u32 as usize] = j as u32;
         }
-        (columns, rank.par_chunks(Self::RUN))
-            .into_par_iter()
-            .for_each(|((point, distance, prim, u, v), ranks)| {
-                for (k, &j) in ranks.iter().enumerate() {
-                    // The answers are read at random (4.7 MB of them for 65,536 points): each
-                    // is asked for 16 rows ahead (spot and teapot, 65,536 uniform points on a
-                    // Zen 3 VM: about 5 % of the batch, on one thread and on two).
-                    if let Some(&ahead) = ranks.get(k + 16) {
-                        prefetch(sorted.as_ptr().wrapping_add(ahead as usize));
-                    }
-                    write_row(sorted[j as usize], k, (point, distance, prim, u, v));
+        for_each_column_run(threads, columns, |r, (point, distance, prim, u, v)| {
+            let ranks = &rank[r * Self::RUN..][..point.len()];
+            for (k, &j) in ranks.iter().enumerate() {
+                // The answers are read at random (4.7 MB of them for 65,536 points): each
+                // is asked for 16 rows ahead (spot and teapot, 65,536 uniform points on a
+                // Zen 3 VM: about 5 % of the batch, on one thread and on two).
+                if let Some(&ahead) = ranks.get(k + 16) {
+                    prefetch(sorted.as_ptr().wrapping_add(ahead as usize));
                 }
-            });
+                write_row(sorted[j as usize], k, (point, distance, prim, u, v));
+            }
+        });
     }
 
     /// The batch's searches in Morton order (module notes of
@@ -434,18 +486,17 @@ impl ClosestPointTree {
     fn search_in_morton_order<P: QueryPoints + ?Sized>(
         &self,
         points: &P,
+        threads: Threads,
     ) -> (Vec<u64>, Vec<Option<ClosestPoint>>) {
-        let order = morton_order(points);
+        let order = morton_order(points, threads);
         // Gathered first: read inside the search loop, each point was a cache miss.
-        let in_order: Vec<DVec3> = order
-            .par_iter()
-            .map(|&key| points.point(key as u32 as usize))
-            .collect();
+        let in_order: Vec<DVec3> = map_collect(threads, order.len(), |j| {
+            points.point(order[j] as u32 as usize)
+        });
         let mut sorted = vec![None; points.count()];
-        sorted
-            .par_chunks_mut(Self::RUN)
-            .zip(in_order.par_chunks(Self::RUN))
-            .for_each(|(out, run)| self.search_run(run, out));
+        for_each_chunk(threads, &mut sorted, Self::RUN, |k, out| {
+            self.search_run(&in_order[k * Self::RUN..][..out.len()], out)
+        });
         (order, sorted)
     }
 
