@@ -2,9 +2,11 @@
 //! itself, with no hand-off to a pool thread (on a busy machine each hand-off waits for the
 //! scheduler, which can cost more than a small batch), for every query; `n`: `n` threads.
 //! Row-by-row queries ([`fill_rows`]) run on the calling thread and a pool of `n - 1` threads;
-//! the others ([`run_on_threads`]: `closest_point`'s sorted batches, `intersect_all`) on a pool
-//! of `n` threads (the global rayon pool for `None`) while the calling thread waits. A pool of
-//! `n` threads is started on first use and kept for later calls.
+//! the others ([`run_on_threads`]: `closest_point`'s sorted batches, `intersect_all`) in a pool
+//! of `n` threads (the global rayon pool for `None`, where `closest_point`'s runs are shared
+//! between the calling thread and the pool's threads, hbv's `batch_threads`; for `n`, the
+//! calling thread waits). A pool of `n` threads is started on first use and kept for later
+//! calls.
 
 use std::sync::{Arc, Mutex};
 

@@ -1,32 +1,60 @@
-//! Where a batch of point queries runs: spread over the current rayon pool, or on the calling
-//! thread alone. The same steps either way, so the same answers; only who takes them differs.
+//! Where a batch of point queries runs: shared out between the calling thread and the current
+//! rayon pool's other threads, or in turn on the calling thread alone. The same steps either
+//! way, so the same answers; only who takes them differs.
 //!
-//! A caller that wants one thread gains nothing from a pool of one: its thread must be woken
-//! for each call, which on a busy machine waits for the scheduler (from Python, 257 to 2,048
-//! points took 2 ms at the 90th percentile through a one-thread pool, against 0.17–0.8 ms of
-//! work, while two other processes ran).
+//! **Shared out** (`Threads::Pool`): the work is cut into items (runs of a batch) that the
+//! calling thread starts on at once and the pool's threads take one at a time as they wake. A
+//! rayon parallel iterator called from outside the pool would instead hand every item to the
+//! pool and leave the calling thread waiting for a pool thread to wake (from Python, 100–200 µs
+//! on an idle virtual machine before any answer, which made all-threads batches of up to 8,192
+//! points slower than one-thread ones on the Cornell box).
+//!
+//! **On the calling thread** (`Threads::Here`): for a caller that wants one thread. A pool of
+//! one gains nothing: its thread must be woken for each call, which on a busy machine waits for
+//! the scheduler (from Python, 257 to 2,048 points took 2 ms at the 90th percentile through a
+//! one-thread pool, against 0.17–0.8 ms of work, while two other processes ran).
 
-use rayon::prelude::*;
+use std::sync::Mutex;
 
 /// Where a batch runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Threads {
-    /// In parallel on the current rayon pool (the global one outside any pool).
+    /// The calling thread and the current rayon pool's other threads (the global pool's outside
+    /// any pool), taking items in turn.
     Pool,
     /// In turn on the calling thread; no rayon task is made.
     Here,
 }
 
-/// `(0..n).map(f)`, collected in order.
-pub(super) fn map_collect<T: Send>(
-    threads: Threads,
-    n: usize,
-    f: impl Fn(usize) -> T + Sync + Send,
-) -> Vec<T> {
-    match threads {
-        Threads::Pool => (0..n).into_par_iter().map(f).collect(),
-        Threads::Here => (0..n).map(f).collect(),
+/// Calls `f` on every item (module notes): each item once, in no particular order on `Pool`.
+pub(super) fn share_out<W: Send>(threads: Threads, items: Vec<W>, f: impl Fn(W) + Sync) {
+    let helpers = match threads {
+        Threads::Here => 0,
+        // One thread per core with the caller working too (the caller, if it is a thread of
+        // the pool, counts among them); never more helpers than items left for them.
+        Threads::Pool => (rayon::current_num_threads() - 1).min(items.len().saturating_sub(1)),
+    };
+    if helpers == 0 {
+        items.into_iter().for_each(f);
+        return;
     }
+    let queue = Mutex::new(items.into_iter());
+    let take_items = || loop {
+        let next = queue
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+            .next();
+        match next {
+            Some(item) => f(item),
+            None => break,
+        }
+    };
+    rayon::in_place_scope(|scope| {
+        for _ in 0..helpers {
+            scope.spawn(|_| take_items());
+        }
+        take_items();
+    });
 }
 
 /// Calls `f(k, chunk)` for the `k`-th chunk of `len` items of `items` (the last one shorter).
@@ -34,16 +62,52 @@ pub(super) fn for_each_chunk<T: Send>(
     threads: Threads,
     items: &mut [T],
     len: usize,
-    f: impl Fn(usize, &mut [T]) + Sync + Send,
+    f: impl Fn(usize, &mut [T]) + Sync,
 ) {
-    match threads {
-        Threads::Pool => items
-            .par_chunks_mut(len)
-            .enumerate()
-            .for_each(|(k, chunk)| f(k, chunk)),
-        Threads::Here => items
-            .chunks_mut(len)
-            .enumerate()
-            .for_each(|(k, chunk)| f(k, chunk)),
+    let chunks: Vec<_> = items.chunks_mut(len).enumerate().collect();
+    share_out(threads, chunks, |(k, chunk)| f(k, chunk));
+}
+
+/// Items per chunk of [`map_collect`]: enough that taking one costs nothing beside its work.
+const MAP_CHUNK: usize = 4096;
+
+/// `(0..n).map(f)`, collected in order.
+pub(super) fn map_collect<T: Send + Copy + Default>(
+    threads: Threads,
+    n: usize,
+    f: impl Fn(usize) -> T + Sync,
+) -> Vec<T> {
+    let mut out = vec![T::default(); n];
+    for_each_chunk(threads, &mut out, MAP_CHUNK, |k, chunk| {
+        for (j, slot) in chunk.iter_mut().enumerate() {
+            *slot = f(k * MAP_CHUNK + j);
+        }
+    });
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    /// Every item is taken exactly once, on one thread or shared out, inside a pool and outside.
+    #[test]
+    fn every_item_is_taken_once() {
+        for threads in [Threads::Here, Threads::Pool] {
+            for n in [0, 1, 2, 7, 1000] {
+                let taken: Vec<AtomicUsize> = (0..n).map(|_| AtomicUsize::new(0)).collect();
+                share_out(threads, (0..n).collect(), |i| {
+                    taken[i].fetch_add(1, Ordering::Relaxed);
+                });
+                assert!(taken.iter().all(|t| t.load(Ordering::Relaxed) == 1));
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(3)
+                    .build()
+                    .unwrap();
+                let squares = pool.install(|| map_collect(threads, n, |i| i * i));
+                assert_eq!(squares, (0..n).map(|i| i * i).collect::<Vec<_>>());
+            }
+        }
     }
 }

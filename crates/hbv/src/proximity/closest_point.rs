@@ -3,7 +3,7 @@
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use super::batch_threads::{for_each_chunk, map_collect, Threads};
+use super::batch_threads::{for_each_chunk, map_collect, share_out, Threads};
 use super::box_bound::{prune_threshold, rounding_margin, PointBracket};
 use super::candidate_grid::{
     CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, Located, NearestTriangles,
@@ -117,44 +117,23 @@ fn write_row(found: Option<ClosestPoint>, k: usize, (point, distance, prim, u, v
 }
 
 /// Calls `f(r, rows of run r)` for every run of [`ClosestPointTree::RUN`] rows of `columns`
-/// (the last one shorter): in parallel on the current pool, or in turn on the calling thread.
+/// (the last one shorter), shared out as `threads` says (module `batch_threads`).
 fn for_each_column_run(
     threads: Threads,
     (point, distance, prim, u, v): ColumnRun<'_>,
-    f: impl Fn(usize, ColumnRun<'_>) + Sync + Send,
+    f: impl Fn(usize, ColumnRun<'_>) + Sync,
 ) {
     const RUN: usize = ClosestPointTree::RUN;
-    match threads {
-        Threads::Pool => {
-            let runs = (0..point.len().div_ceil(RUN)).into_par_iter();
-            let columns = (
-                point.par_chunks_mut(RUN),
-                distance.par_chunks_mut(RUN),
-                prim.par_chunks_mut(RUN),
-                u.par_chunks_mut(RUN),
-                v.par_chunks_mut(RUN),
-            );
-            (columns, runs)
-                .into_par_iter()
-                .for_each(|(columns, r)| f(r, columns));
-        }
-        Threads::Here => {
-            let rows = point.len();
-            for r in 0..rows.div_ceil(RUN) {
-                let at = r * RUN..rows.min(r * RUN + RUN);
-                f(
-                    r,
-                    (
-                        &mut point[at.clone()],
-                        &mut distance[at.clone()],
-                        &mut prim[at.clone()],
-                        &mut u[at.clone()],
-                        &mut v[at],
-                    ),
-                );
-            }
-        }
-    }
+    let runs: Vec<(usize, ColumnRun<'_>)> = point
+        .chunks_mut(RUN)
+        .zip(distance.chunks_mut(RUN))
+        .zip(prim.chunks_mut(RUN))
+        .zip(u.chunks_mut(RUN))
+        .zip(v.chunks_mut(RUN))
+        .map(|((((point, distance), prim), u), v)| (point, distance, prim, u, v))
+        .enumerate()
+        .collect();
+    share_out(threads, runs, |(r, columns)| f(r, columns));
 }
 
 /// One pending child of the search: its lower bound, and a node index (`triangles == 0`) or a
@@ -444,6 +423,15 @@ impl ClosestPointTree {
             }
             return;
         }
+        // Two runs go to the calling thread alone too: a pool thread would join after the
+        // caller had done most of the work, and the caller would then wait for it to start and
+        // find nothing left (from Python, 512 points on two threads took as long as on one or
+        // longer on every shared mesh; 1,024 were faster shared on spot and the bunny).
+        let threads = if n <= 2 * Self::RUN {
+            Threads::Here
+        } else {
+            threads
+        };
         let columns = (point, distance, prim, u, v);
         if self.grid.is_some() {
             for_each_column_run(threads, columns, |r, (point, distance, prim, u, v)| {
