@@ -364,7 +364,9 @@ impl ClosestPointTree {
     /// answer gets NaN, +∞, -1, 0, 0. Panics if a column's length is not the number of points.
     ///
     /// `points` may be a `[DVec3]` or the rows of an f32 or f64 array read in place
-    /// ([`FlatPoints`](super::FlatPoints)).
+    /// ([`FlatPoints`](super::FlatPoints)). The calling thread works on the batch from the
+    /// start, and the current rayon pool's other threads (the global pool's outside any pool)
+    /// join as they wake; batches of up to two runs stay on the calling thread.
     pub fn closest_points_into<P: QueryPoints + ?Sized>(
         &self,
         points: &P,
