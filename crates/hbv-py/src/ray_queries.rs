@@ -7,7 +7,6 @@ use hbv::{Accelerator, AllHits};
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
-use rayon::prelude::*;
 
 use crate::arrays::{
     float_array, interval_bound, BoundSlice, Coordinate, FloatSlice, Floats, IntervalBound,
@@ -100,12 +99,10 @@ impl RayBatch<'_> {
         }
     }
 
+    /// Every ray, on the calling thread: a copy (a few ns a ray) that a parallel iterator would
+    /// make the calling thread wait for the pool's threads to wake for.
     fn rays(&self) -> Vec<Ray> {
-        (0..self.len)
-            .into_par_iter()
-            .with_min_len(GRAIN)
-            .map(|i| self.ray(i))
-            .collect()
+        (0..self.len).map(|i| self.ray(i)).collect()
     }
 }
 

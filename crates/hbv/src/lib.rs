@@ -44,6 +44,7 @@ pub mod scene_accelerators;
 pub use brute_force::BruteForce;
 
 pub mod all_hits;
+mod batch_threads;
 pub mod proximity;
 
 pub use all_hits::AllHits;

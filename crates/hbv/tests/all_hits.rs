@@ -81,6 +81,23 @@ fn assert_all_hits_agree(
             );
             at += want.len();
         }
+        // A batch of more than two runs of rays (shared between the calling thread and the
+        // pool's threads rather than kept on the calling thread): the rays repeated, the same
+        // hits, in ray order.
+        if !rays.is_empty() {
+            let long: Vec<Ray> = rays.iter().cycle().take(3 * 256 + 1).copied().collect();
+            let mut expected = Vec::new();
+            for (i, ray) in long.iter().enumerate() {
+                accel.all_hits(ray, &mut got);
+                expected.extend(got.iter().map(|&h| (i as u32, h)));
+            }
+            prop_assert_eq!(
+                accel.all_hits_batch(&long),
+                expected,
+                "{}: long batch",
+                name
+            );
+        }
     }
     Ok(())
 }

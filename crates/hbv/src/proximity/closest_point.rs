@@ -3,7 +3,6 @@
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use super::batch_threads::{for_each_chunk, map_collect, share_out, Threads};
 use super::box_bound::{prune_threshold, rounding_margin, PointBracket};
 use super::candidate_grid::{
     CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, Located, NearestTriangles,
@@ -18,6 +17,7 @@ use super::search_lanes::AvxLanes;
 use super::search_lanes::{PortableLanes, SearchLanes};
 use super::search_tree::{SearchTree, SearchTreeConfig, WIDTH};
 use super::triangle_packet::LANES;
+use crate::batch_threads::{for_each_chunk, map_collect, share_out, Threads};
 use crate::bvh::BuildTree;
 use crate::mesh::TriangleMesh;
 

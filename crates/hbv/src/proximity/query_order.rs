@@ -9,7 +9,7 @@
 //! keys with rayon's parallel quicksort: about 290 instructions per point on the bunny's
 //! 65,536, against about 60 here.)
 
-use super::batch_threads::{map_collect, Threads};
+use crate::batch_threads::{map_collect, Threads};
 use glam::DVec3;
 
 use super::query_points::QueryPoints;

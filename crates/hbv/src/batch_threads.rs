@@ -1,4 +1,4 @@
-//! Where a batch of point queries runs: shared out between the calling thread and the current
+//! Where a batch of queries runs (nearest points, every hit along rays): shared out between the calling thread and the current
 //! rayon pool's other threads, or in turn on the calling thread alone. The same steps either
 //! way, so the same answers; only who takes them differs.
 //!
@@ -18,7 +18,7 @@ use std::sync::Mutex;
 
 /// Where a batch runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) enum Threads {
+pub(crate) enum Threads {
     /// The calling thread and the current rayon pool's other threads (the global pool's outside
     /// any pool), taking items in turn.
     Pool,
@@ -27,7 +27,7 @@ pub(super) enum Threads {
 }
 
 /// Calls `f` on every item (module notes): each item once, in no particular order on `Pool`.
-pub(super) fn share_out<W: Send>(threads: Threads, items: Vec<W>, f: impl Fn(W) + Sync) {
+pub(crate) fn share_out<W: Send>(threads: Threads, items: Vec<W>, f: impl Fn(W) + Sync) {
     let helpers = match threads {
         Threads::Here => 0,
         // One thread per core with the caller working too (the caller, if it is a thread of
@@ -58,7 +58,7 @@ pub(super) fn share_out<W: Send>(threads: Threads, items: Vec<W>, f: impl Fn(W) 
 }
 
 /// Calls `f(k, chunk)` for the `k`-th chunk of `len` items of `items` (the last one shorter).
-pub(super) fn for_each_chunk<T: Send>(
+pub(crate) fn for_each_chunk<T: Send>(
     threads: Threads,
     items: &mut [T],
     len: usize,
@@ -72,7 +72,7 @@ pub(super) fn for_each_chunk<T: Send>(
 const MAP_CHUNK: usize = 4096;
 
 /// `(0..n).map(f)`, collected in order.
-pub(super) fn map_collect<T: Send + Copy + Default>(
+pub(crate) fn map_collect<T: Send + Copy + Default>(
     threads: Threads,
     n: usize,
     f: impl Fn(usize) -> T + Sync,
