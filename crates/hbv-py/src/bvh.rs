@@ -8,7 +8,7 @@ use std::time::Instant;
 use hbv::bvh::file::BvhFile;
 use hbv::bvh::layout::Wide8Layout;
 use hbv::bvh::{expected_tests, sah_cost, BuildTree, SahWeights};
-use hbv::proximity::{ClosestPointColumns, ClosestPointTree, FlatPoints};
+use hbv::proximity::{ClosestPointColumns, ClosestPointTree, FlatPoints, QueryPoints};
 use hbv::{Accelerator, TriangleMesh};
 use numpy::{IntoPyArray, PyArray1, PyArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -20,7 +20,7 @@ use crate::build_options::BuildOptions;
 use crate::bvh_file::{describe, save};
 use crate::mesh::PyMesh;
 use crate::ray_queries::{any_hits, closest_hits, every_hit, hit_counts, inside, RayArgs};
-use crate::thread_pool::{run_here_or_on_threads, ThreadCount};
+use crate::thread_pool::{one_thread, run_here_or_on_threads, ThreadCount};
 
 /// A bounding volume hierarchy over a mesh, answering ray and point queries.
 ///
@@ -48,6 +48,21 @@ pub struct PyBvh {
     build_seconds: f64,
     /// The settings line saved with the tree (`hbv build`'s words), or read from its file.
     settings: String,
+}
+
+/// `tree`'s nearest points of `points` into `columns`: on the calling thread alone (`here`,
+/// `threads=1`) or shared with the current pool's threads.
+fn answer_into<P: QueryPoints + ?Sized>(
+    tree: &ClosestPointTree,
+    points: &P,
+    columns: ClosestPointColumns<'_>,
+    here: bool,
+) {
+    if here {
+        tree.closest_points_into_here(points, columns);
+    } else {
+        tree.closest_points_into(points, columns);
+    }
 }
 
 /// The (N, 3) rows of a checked point array.
@@ -260,7 +275,7 @@ impl PyBvh {
         // One thread is the calling thread itself (`closest_points_into_here`), not a pool of
         // one to wake; so is one run of points whatever `threads` says (`closest_points_into`
         // answers it in place).
-        let one_thread = threads.is_some_and(|t| t.get() == 1);
+        let here = one_thread(threads);
         py.detach(|| {
             let answer = || {
                 let columns = ClosestPointColumns {
@@ -271,22 +286,12 @@ impl PyBvh {
                     v: &mut v,
                 };
                 let tree = self.closest_tree();
-                match (points, one_thread) {
-                    (FloatSlice::F32(values), false) => {
-                        tree.closest_points_into(&rows_of(values), columns)
-                    }
-                    (FloatSlice::F64(values), false) => {
-                        tree.closest_points_into(&rows_of(values), columns)
-                    }
-                    (FloatSlice::F32(values), true) => {
-                        tree.closest_points_into_here(&rows_of(values), columns)
-                    }
-                    (FloatSlice::F64(values), true) => {
-                        tree.closest_points_into_here(&rows_of(values), columns)
-                    }
+                match points {
+                    FloatSlice::F32(values) => answer_into(tree, &rows_of(values), columns, here),
+                    FloatSlice::F64(values) => answer_into(tree, &rows_of(values), columns, here),
                 }
             };
-            run_here_or_on_threads(one_thread || n <= ClosestPointTree::RUN, threads, answer)
+            run_here_or_on_threads(here || n <= ClosestPointTree::RUN, threads, answer)
         })?;
         let point = point.into_flattened();
         let out = PyDict::new(py);

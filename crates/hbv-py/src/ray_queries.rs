@@ -13,7 +13,7 @@ use crate::arrays::{
 };
 use crate::mesh::PyMesh;
 use crate::output_column::OutputColumn;
-use crate::thread_pool::{fill_rows, run_on_threads, ThreadCount, GRAIN};
+use crate::thread_pool::{fill_rows, one_thread, run_on_threads, ThreadCount, GRAIN};
 
 /// The ray arguments of a query, read and checked.
 pub struct RayArgs<'py> {
@@ -234,15 +234,9 @@ pub fn every_hit<'py, 's, A: AllHits + ?Sized + 's>(
 ) -> PyResult<Bound<'py, PyTuple>> {
     let batch = args.batch();
     let hits = py.detach(|| {
-        if threads.is_some_and(|t| t.get() == 1) {
+        if one_thread(threads) {
             // One thread is the calling thread itself, not a pool of one to wake.
-            let structure = structure();
-            let (mut all, mut hits) = (Vec::new(), Vec::new());
-            for i in 0..batch.len {
-                structure.all_hits(&batch.ray(i), &mut hits);
-                all.extend(hits.iter().map(|&h| (i as u32, h)));
-            }
-            return Ok(all);
+            return Ok(structure().all_hits_batch_here(&batch.rays()));
         }
         run_on_threads(threads, || {
             let rays = batch.rays();

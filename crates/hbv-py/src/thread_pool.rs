@@ -38,6 +38,11 @@ impl ThreadCount {
     }
 }
 
+/// Whether a query asked for one thread: it then runs on the calling thread, with no pool.
+pub fn one_thread(threads: Option<ThreadCount>) -> bool {
+    threads.is_some_and(|n| n.get() == 1)
+}
+
 impl<'a, 'py> FromPyObject<'a, 'py> for ThreadCount {
     type Error = PyErr;
 
@@ -149,7 +154,7 @@ pub fn fill_rows<R: Rows>(
     rows: R,
     fill: impl Fn(usize, R) + Sync + Send,
 ) -> PyResult<()> {
-    if threads.is_some_and(|n| n.get() == 1) || rows.rows() <= SERIAL_ROWS {
+    if one_thread(threads) || rows.rows() <= SERIAL_ROWS {
         fill(0, rows);
         return Ok(());
     }

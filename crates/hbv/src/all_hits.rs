@@ -32,26 +32,18 @@ pub trait AllHits: Send + Sync {
     /// to 8,192 random rays on the Cornell box took longer on two threads than on one); up to
     /// two runs stay on the calling thread.
     fn all_hits_batch(&self, rays: &[Ray]) -> Vec<(u32, Hit)> {
-        let mut parts: Vec<Vec<(u32, Hit)>> = vec![Vec::new(); rays.len().div_ceil(ALL_HITS_GRAIN)];
         let threads = if rays.len() <= 2 * ALL_HITS_GRAIN {
             Threads::Here
         } else {
             Threads::Pool
         };
-        let runs: Vec<_> = parts
-            .iter_mut()
-            .zip(rays.chunks(ALL_HITS_GRAIN))
-            .enumerate()
-            .collect();
-        share_out(threads, runs, |(run, (out, rays))| {
-            let mut hits = Vec::new();
-            for (k, ray) in rays.iter().enumerate() {
-                self.all_hits(ray, &mut hits);
-                let index = (run * ALL_HITS_GRAIN + k) as u32;
-                out.extend(hits.iter().map(|&h| (index, h)));
-            }
-        });
-        parts.concat()
+        all_hits_batch_with(self, rays, threads)
+    }
+
+    /// [`AllHits::all_hits_batch`] on the calling thread alone, with no rayon task: the same
+    /// list, for a caller that wants one thread (`threads=1` from Python).
+    fn all_hits_batch_here(&self, rays: &[Ray]) -> Vec<(u32, Hit)> {
+        all_hits_batch_with(self, rays, Threads::Here)
     }
 
     /// Hit counts of many rays, in parallel on the current rayon pool.
@@ -68,6 +60,30 @@ pub trait AllHits: Send + Sync {
 
 /// Rays per rayon task in the batch forms.
 const ALL_HITS_GRAIN: usize = 256;
+
+/// The batch forms' list of every hit: runs of [`ALL_HITS_GRAIN`] rays taken as `threads` says
+/// (module `batch_threads`), their hits concatenated in ray order.
+fn all_hits_batch_with<A: AllHits + ?Sized>(
+    structure: &A,
+    rays: &[Ray],
+    threads: Threads,
+) -> Vec<(u32, Hit)> {
+    let mut parts: Vec<Vec<(u32, Hit)>> = vec![Vec::new(); rays.len().div_ceil(ALL_HITS_GRAIN)];
+    let runs: Vec<_> = parts
+        .iter_mut()
+        .zip(rays.chunks(ALL_HITS_GRAIN))
+        .enumerate()
+        .collect();
+    share_out(threads, runs, |(run, (out, rays))| {
+        let mut hits = Vec::new();
+        for (k, ray) in rays.iter().enumerate() {
+            structure.all_hits(ray, &mut hits);
+            let index = (run * ALL_HITS_GRAIN + k) as u32;
+            out.extend(hits.iter().map(|&h| (index, h)));
+        }
+    });
+    parts.concat()
+}
 
 /// Sorts hits by `t`, then by primitive id: the order every [`AllHits`] answer is given in.
 pub fn sort_hits(hits: &mut [Hit]) {
