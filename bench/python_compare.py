@@ -42,6 +42,13 @@ that hbv's closest points are the same on one thread and on all.
 Both sides get the same float32 points (`hbv.BVH.closest_point(points)` reads the array as is,
 Open3D a `Tensor` of it); Open3D's `nthreads=0` means every core, as hbv's `threads=None`.
 
+NumPy's BLAS (OpenBLAS) is held to one thread (`OPENBLAS_NUM_THREADS=1`, unless set): after a
+BLAS call, which trimesh's intersectors make, an OpenBLAS worker thread keeps spinning on a
+core for a while, looking for more work, and any threaded query run then (hbv's or Open3D's)
+gets only the cores left. On the 2-core benchmark machine, camera rays on all threads after
+trimesh's `intersects_first` took 12.6-13.7 ms with OpenBLAS's default against 8.3-8.4 ms held
+to one thread (one thread: 13.3-14.3 ms). Set it to another value to measure that case.
+
 Usage (setup in bench/python_requirements.txt):
 
     ../py-bench-venv/bin/python bench/python_compare.py                 # every ../shared/scenes/*.ply
@@ -58,10 +65,13 @@ import statistics
 import sys
 import time
 
-import numpy as np
+# Before NumPy loads OpenBLAS (module notes).
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import hbv
-from machine import describe, machine
+import numpy as np  # noqa: E402
+
+import hbv  # noqa: E402
+from machine import describe, machine  # noqa: E402
 
 REPO = pathlib.Path(__file__).resolve().parent.parent
 # The last `time_interleaved` call's page faults per timed call, by contender.
@@ -357,7 +367,7 @@ def main():
         closest.append(c)
         others += o
     where = machine()
-    print(f"\nMachine: {describe(where)}")
+    print(f"\nMachine: {describe(where)}; OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']}")
     print_tables(rows, closest, others, cores)
     if args.json:
         args.json.write_text(json.dumps({"machine": where, "cores": cores, "rays": rows,
