@@ -77,18 +77,25 @@ fn mesh_and_points(
     })
 }
 
+/// [`assert_closest_points_agree_with`] with the default search tree: the insertion tree
+/// without a candidate grid (batches in Morton order, each point seeded by its neighbour's
+/// answer), the SAH tree with the product's grid.
 fn assert_closest_points_agree(
     mesh: &TriangleMesh,
     order: hbv::bvh::build::InsertionOrder,
     leaf: usize,
     points: &[Vec3],
 ) -> Result<(), TestCaseError> {
+    let no_grid = CandidateGridConfig {
+        cells: 0,
+        ..CandidateGridConfig::default()
+    };
     assert_closest_points_agree_with(
         mesh,
         order,
         leaf,
         SearchTreeConfig::default(),
-        CandidateGridConfig::default(),
+        no_grid,
         points,
     )
 }

@@ -561,37 +561,56 @@ impl ClosestPointTree {
     /// queries/s on spot and bunny), else for the x86-64 baseline. The answers are the same
     /// bits either way: Rust never fuses a product and a sum into an FMA on its own.
     fn search_run(&self, run: &[DVec3], out: &mut [Option<ClosestPoint>]) {
+        self.search_run_with_ids(run, |k, answer| out[k] = answer.map(|(c, _)| c));
+    }
+
+    /// [`ClosestPointTree::search_run`], passing point `k`'s answer with its triangle's
+    /// `LANES × packet + lane` to `write(k, answer)`.
+    fn search_run_with_ids(
+        &self,
+        run: &[DVec3],
+        write: impl FnMut(usize, Option<(ClosestPoint, u32)>),
+    ) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
         {
             // SAFETY: the CPU has AVX2 and FMA, the features `search_run_avx2` is compiled for.
-            unsafe { self.search_run_avx2(run, out) };
+            unsafe { self.search_run_avx2(run, write) };
             return;
         }
-        self.search_run_portable(run, out);
+        self.search_run_with::<PortableLanes>(run, write);
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fn search_run_avx2(&self, run: &[DVec3], out: &mut [Option<ClosestPoint>]) {
-        self.search_run_with::<AvxLanes>(run, out);
+    fn search_run_avx2(
+        &self,
+        run: &[DVec3],
+        write: impl FnMut(usize, Option<(ClosestPoint, u32)>),
+    ) {
+        self.search_run_with::<AvxLanes>(run, write);
     }
 
     /// [`ClosestPointTree::search_run`] for the x86-64 baseline.
+    #[cfg(test)]
     fn search_run_portable(&self, run: &[DVec3], out: &mut [Option<ClosestPoint>]) {
-        self.search_run_with::<PortableLanes>(run, out);
+        self.search_run_with::<PortableLanes>(run, |k, answer| out[k] = answer.map(|(c, _)| c));
     }
 
-    /// [`ClosestPointTree::search_run`] with the lane masks `M`, in whatever features its
-    /// caller is compiled for.
+    /// [`ClosestPointTree::search_run_with_ids`] with the lane masks `M`, in whatever features
+    /// its caller is compiled for.
     #[inline(always)]
-    fn search_run_with<M: SearchLanes>(&self, run: &[DVec3], out: &mut [Option<ClosestPoint>]) {
+    fn search_run_with<M: SearchLanes>(
+        &self,
+        run: &[DVec3],
+        mut write: impl FnMut(usize, Option<(ClosestPoint, u32)>),
+    ) {
         let mut seed = None;
         let mut stack = Vec::with_capacity(64);
-        for (o, &p) in out.iter_mut().zip(run) {
+        for (k, &p) in run.iter().enumerate() {
             let found = self.search::<M>(p, seed, &mut stack, &mut ());
             seed = found.map(|(_, local)| local).or(seed);
-            *o = found.map(|(c, _)| c);
+            write(k, found);
         }
     }
 
@@ -805,12 +824,24 @@ impl ClosestPointTree {
         let mut stack = vec![(0u32, 0u32)];
         while let Some((child, triangles)) = stack.pop() {
             if triangles > 0 {
-                for k in 0..triangles {
-                    let local = child * LANES as u32 + k;
-                    if self.distance_squared(p, local) <= radius_squared {
-                        found.push(local);
-                        if found.len() > limit {
-                            return None;
+                // Each packet's bounds first (as the search's leaves): the exact routine only
+                // for triangles that may be within the radius.
+                for k in 0..triangles.div_ceil(LANES as u32) {
+                    let packet = child + k;
+                    let bounds =
+                        tree.packets[packet as usize].distance_squared_lower_bounds(&bracket);
+                    let lanes = (triangles - k * LANES as u32).min(LANES as u32) as usize;
+                    for (lane, &bound) in bounds.iter().enumerate().take(lanes) {
+                        // Not `bound <= threshold`: a NaN bound must not prune.
+                        if bound > threshold {
+                            continue;
+                        }
+                        let local = packet * LANES as u32 + lane as u32;
+                        if self.distance_squared(p, local) <= radius_squared {
+                            found.push(local);
+                            if found.len() > limit {
+                                return None;
+                            }
                         }
                     }
                 }
@@ -830,9 +861,12 @@ impl ClosestPointTree {
 }
 
 impl NearestTriangles for ClosestPointTree {
-    fn nearest(&self, p: DVec3) -> Option<u32> {
-        self.search::<PortableLanes>(p, None, &mut Vec::new(), &mut ())
-            .map(|(_, local)| local)
+    fn nearest_in_turn(&self, points: &[DVec3]) -> Vec<Option<u32>> {
+        let mut found = vec![None; points.len()];
+        self.search_run_with_ids(points, |k, answer| {
+            found[k] = answer.map(|(_, local)| local)
+        });
+        found
     }
 
     fn distance_squared(&self, p: DVec3, local: u32) -> f64 {
