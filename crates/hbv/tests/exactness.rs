@@ -8,6 +8,8 @@ use hbv::geometry::Ray;
 use hbv::glam::Vec3;
 use hbv::{Accelerator, BruteForce, TriangleMesh};
 
+mod common;
+
 /// A camera ray that grazes a silhouette of the Spot mesh. In exact rational arithmetic it passes
 /// inside two folded triangles (551 by 1e-6 and 3479 by 2e-5, in barycentric terms); with the
 /// f32 shear of Woop et al.'s test alone it misses both. Found by `bench/embree_compare.py`
@@ -48,5 +50,119 @@ fn grazing_silhouette_ray_on_spot_hits() {
             .unwrap_or_else(|| panic!("{name} misses"));
         assert!([551, 3479].contains(&hit.prim), "{name}: {hit:?}");
         assert!(accel.occluded(&ray), "{name}");
+    }
+}
+
+/// A ray leaving a surface beside a sliver 1,600 long (two vertices near the origin, one far),
+/// found against Embree on a triangle soup: the ray's line meets the sliver's plane 0.00014
+/// *behind* the origin, but the sheared-frame `t` came out at +0.035, well past the ray's
+/// `tmin` of 0.0137. The edge functions' error, divided by the sliver's small determinant, had
+/// outgrown the few ulps the test allowed for `t` (`Triangle::depth_error`).
+#[test]
+fn a_sliver_just_behind_the_origin_is_not_hit() {
+    let sliver = [
+        Vec3::new(-0.7663059, -0.06498213, -0.60762125),
+        Vec3::new(-0.31761533, -0.26381332, 0.278384),
+        Vec3::new(-142.90321, -1108.2607, -1216.1028),
+    ];
+    let origin = Vec3::new(-42.13001, -324.99783, -356.27493);
+    let direction = Vec3::new(-0.28065813, -0.27532172, -0.9194721);
+    assert!(plane_distance(sliver, origin, direction) < -1e-4);
+    let mesh = TriangleMesh::new(sliver.to_vec(), vec![[0, 1, 2]]).unwrap();
+    let tree = BinnedSahBuilder::default().build(&mesh);
+    for tmin in [0.0, 0.013685193] {
+        let ray = Ray::new(origin, direction).with_interval(tmin, f32::INFINITY);
+        for (name, accel) in every_accelerator(&tree, &mesh) {
+            assert_eq!(accel.intersect(&ray), None, "{name}, tmin {tmin}");
+            assert!(!accel.occluded(&ray), "{name}, tmin {tmin}");
+        }
+    }
+}
+
+/// Brute force and every layout over `tree`, by name.
+fn every_accelerator(
+    tree: &hbv::bvh::BuildTree,
+    mesh: &TriangleMesh,
+) -> Vec<(&'static str, Box<dyn Accelerator>)> {
+    vec![
+        ("brute force", Box::new(BruteForce::new(mesh))),
+        ("skip", Box::new(SkipLayout::new(tree, mesh))),
+        ("ordered", Box::new(OrderedLayout::new(tree, mesh))),
+        ("wide4", Box::new(Wide4Layout::new(tree, mesh))),
+        ("wide8", Box::new(Wide8Layout::new(tree, mesh))),
+    ]
+}
+
+/// The ray parameter where the line `o + t d` meets the triangle's plane, in f64 (the
+/// differences of f32 coordinates are exact, the rest rounds by about 1e-16 of its terms),
+/// with a bound on its error.
+fn plane_distance_with_error(p: [Vec3; 3], o: Vec3, d: Vec3) -> (f64, f64) {
+    let [a, b, c] = p.map(|v| v.as_dvec3());
+    let (o, d) = (o.as_dvec3(), d.as_dvec3());
+    let n = (b - a).cross(c - a);
+    let (num, den) = (n.dot(a - o), n.dot(d));
+    let t = num / den;
+    let terms = n.abs().dot((a - o).abs()) + t.abs() * n.abs().dot(d.abs());
+    (t, 1e-12 * terms / den.abs())
+}
+
+fn plane_distance(p: [Vec3; 3], o: Vec3, d: Vec3) -> f64 {
+    plane_distance_with_error(p, o, d).0
+}
+
+/// Slivers and huge triangles (two vertices near each other, the third up to 10⁴ away), rays
+/// starting a hair in front of or behind their plane in any direction: whatever brute force and
+/// the layouts report as a hit lies at or after the origin in exact terms.
+mod near_origin {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn sliver() -> impl Strategy<Value = [Vec3; 3]> {
+        let v =
+            || (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0).prop_map(|(x, y, z)| Vec3::new(x, y, z));
+        (v(), v(), v(), 1e-3f32..10.0, 10.0f32..1e4, v()).prop_filter_map(
+            "degenerate",
+            |(base, e1, far, near_size, far_size, shift)| {
+                let p0 = base + shift * 100.0;
+                let p = [
+                    p0,
+                    p0 + e1 * near_size,
+                    p0 + far.normalize_or_zero() * far_size,
+                ];
+                let t = hbv::geometry::Triangle::new(p[0], p[1], p[2]);
+                (!t.is_degenerate()).then_some(p)
+            },
+        )
+    }
+
+    proptest! {
+        #![proptest_config(crate::common::cases(256))]
+
+        #[test]
+        fn hits_next_to_the_origin_are_ahead_of_it(
+            p in sliver(),
+            (a, b) in (0.0f32..1.0, 0.0f32..1.0),
+            offset in -1e-3f32..1e-3,
+            (dx, dy, dz) in (-1.0f32..1.0, -1.0f32..1.0, -1.0f32..1.0),
+        ) {
+            let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
+            let normal = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+            let origin = p[0] + (p[1] - p[0]) * a + (p[2] - p[0]) * b + normal * offset;
+            let direction = Vec3::new(dx, dy, dz);
+            prop_assume!(direction.length() > 1e-3);
+            let (t, error) = plane_distance_with_error(p, origin, direction);
+            prop_assume!(t.is_finite());
+            let mesh = TriangleMesh::new(p.to_vec(), vec![[0, 1, 2]]).unwrap();
+            let tree = BinnedSahBuilder::default().build(&mesh);
+            for (name, accel) in every_accelerator(&tree, &mesh) {
+                let ray = Ray::new(origin, direction);
+                if let Some(hit) = accel.intersect(&ray) {
+                    prop_assert!(t >= -error, "{}: hit at {} where the plane is at {}", name, hit.t, t);
+                }
+                if t < -error {
+                    prop_assert!(!accel.occluded(&ray), "{}: occluded by a plane at {}", name, t);
+                }
+            }
+        }
     }
 }

@@ -73,10 +73,11 @@ impl Triangle {
     /// count), at `t = (U Az + V Bz + W Cz) / det` with `u = V / det`, `v = W / det`
     /// (`det = U + V + W`), where `Az = Sz P'[kz]` for each vertex.
     ///
-    /// One refinement: when that `t` is within rounding distance of the origin (a ray starting on
-    /// the surface), its sign is rounding noise, so `t` is recomputed exactly from the plane
-    /// equation (see `plane_distance`). Elsewhere the sheared-frame `t` is kept: it is consistent
-    /// with the edge tests (both use the same rounded shear), which matters for grazing rays.
+    /// One refinement: when that `t` is within its error bound (`depth_error`) of the origin (a
+    /// ray starting on the surface), its sign is rounding noise, so `t` is recomputed exactly
+    /// from the plane equation (see `plane_distance`). Elsewhere the sheared-frame `t` is kept:
+    /// it is consistent with the edge tests (both use the same rounded shear), which matters for
+    /// grazing rays.
     ///
     /// Why it is watertight, and exact: the f32 edge functions come with an error bound per edge
     /// (`edge_error`); where an edge function exceeds its bound its sign is certain (the sign of
@@ -132,19 +133,61 @@ impl Triangle {
         let bz = s.z * b[kz];
         let cz = s.z * c[kz];
         let mut t = (u * az + v * bz + w * cz) / det;
-        let near_origin = Self::NEAR_ORIGIN_ULPS * f32::EPSILON * ma.max(mb).max(mc) * s.z.abs();
-        if t.abs() <= near_origin {
-            // The hit is within rounding distance of the origin: whether it lies before or
-            // after `tmin` is decided by the exact plane distance, not by rounding — unless
-            // `tmin` lies so far beyond that distance that no rounding could reach it (the
-            // exact `t` is within `near_origin` of the computed one, and `plane_distance` is
-            // exact to far less): the usual case of a ray leaving a surface with an offset.
-            if ray.tmin > Self::FAR_BEYOND_ROUNDING * near_origin {
+        let error = Self::depth_error(
+            ma.max(mb).max(mc),
+            s.z,
+            eu.max(ev).max(ew),
+            [az, bz, cz],
+            t,
+            det,
+        );
+        if t.abs() <= error {
+            // The hit is within its error bound of the origin, so the sign of `t` is rounding
+            // noise: whether it lies before or after `tmin` is decided by the exact plane
+            // distance, not by rounding — unless `tmin` lies beyond all the exact `t` can be.
+            // (Which `t` is reported depends on the ray and the triangle, not on the interval:
+            // a segment ending at a reported hit finds it.)
+            if t + error < ray.tmin {
                 return None;
             }
             t = self.plane_distance(ray);
         }
         Self::accept(ray, t, v / det, w / det)
+    }
+
+    /// A bound on the error of the f32 `t = (U Az + V Bz + W Cz) / det` of
+    /// [`Triangle::intersect`], for a hit whose edge functions are each certain and of one sign:
+    ///
+    /// ```text
+    ///   |t − t*| ≤ 64 ε M |Sz|  +  e (|Az − t| + |Bz − t| + |Cz − t|) / |det|
+    /// ```
+    ///
+    /// (`M` the largest |component| of a vertex relative to the origin, `e` a bound on every edge
+    /// function's error, `ε = 2^-23`.) `t` is a weighted mean of the depths `Z`, with weights
+    /// `U, V, W / det`; moving an edge function by `δ` moves it by `δ (Z − t) / det`. The first
+    /// term covers the rounding of the depths, products and quotient (a few ulps of `M |Sz|`,
+    /// with a wide margin); the second the edge functions' own error, which the quotient
+    /// amplifies where `det` is small against them: a huge or sliver triangle seen at a slant.
+    /// (Before this second term, the test took `64 ε M |Sz|` for the whole error: a ray
+    /// leaving a surface beside a 1,500-long sliver met it at `t = 0.035` where the exact
+    /// plane distance was `−0.00014`.)
+    ///
+    /// The wide layouts' packet test computes the same bound with its shared `e`, never
+    /// smaller, in the same order: what it decides against the interval, this test decides
+    /// alike.
+    #[inline(always)]
+    pub(crate) fn depth_error(
+        max_component: f32,
+        shear_z: f32,
+        edge_error: f32,
+        depths: [f32; 3],
+        t: f32,
+        det: f32,
+    ) -> f32 {
+        let [az, bz, cz] = depths;
+        let spread = ((az - t).abs() + (bz - t).abs()) + (cz - t).abs();
+        Self::NEAR_ORIGIN_ULPS * f32::EPSILON * max_component * shear_z.abs()
+            + edge_error * spread / det.abs()
     }
 
     /// A hit at `t` with barycentrics `(u, v)` if `t` is finite and inside `[tmin, tmax]`.
@@ -220,15 +263,10 @@ impl Triangle {
 }
 
 impl Triangle {
-    /// How close to the origin, in ulps of the vertices' coordinates relative to it, a hit must
-    /// be for its `t` to be recomputed exactly. Woop's `t` has an error of a few ulps of those
-    /// coordinates (the shear and the depth products); 64 leaves a wide margin.
+    /// The rounding part of [`Triangle::depth_error`], in ulps of the vertices' coordinates
+    /// relative to the origin (scaled by the shear): Woop's `t` rounds by a few of them (the
+    /// shear and the depth products); 64 leaves a wide margin.
     pub(crate) const NEAR_ORIGIN_ULPS: f32 = 64.0;
-
-    /// A `tmin` this many times the near-origin distance lies beyond any rounding of a hit
-    /// found within that distance of the origin: such a hit is rejected without the exact
-    /// plane distance. (A power of two, so that packet kernels compute the same product.)
-    pub(crate) const FAR_BEYOND_ROUNDING: f32 = 16.0;
 
     /// The ray parameter where the ray meets the triangle's plane, `t = Ng · (p0 − o) / Ng · d`
     /// with `Ng = (p1 − p0) × (p2 − p0)`, evaluated in f64 and rounded once to f32.

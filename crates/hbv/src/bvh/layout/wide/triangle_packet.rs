@@ -98,8 +98,10 @@ impl TrianglePacket {
     ///   miss       if some edge function is certainly positive and another certainly negative
     ///   undecided  if some |E| ≤ e                                    (near an edge: f64 decides)
     ///   t = (U Az + V Bz + W Cz) / det,   det = U + V + W
-    ///   undecided  if |t| ≤ n and tmin ≤ 16 n,   n = 64 ε max|P − o| |Sz|    (next to the origin)
-    ///   miss       if |t| ≤ n and tmin > 16 n
+    ///   r = 64 ε max|P − o| |Sz| + e (|Az − t| + |Bz − t| + |Cz − t|) / |det|
+    ///                                              (the error bound of `Triangle::depth_error`)
+    ///   undecided  if |t| ≤ r and t + r ≥ tmin                       (next to the origin)
+    ///   miss       if |t| ≤ r and t + r < tmin
     ///   hit        if tmin ≤ t ≤ tmax and t is finite, else miss
     /// ```
     #[inline]
@@ -161,10 +163,11 @@ impl TrianglePacket {
                 continue;
             }
             let det = u + v + w;
-            let t = (u * (s.z * az) + v * (s.z * bz) + w * (s.z * cz)) / det;
-            let near_origin = Triangle::NEAR_ORIGIN_ULPS * f32::EPSILON * m * s.z.abs();
-            if t.abs() <= near_origin {
-                let beyond = ray.tmin > Triangle::FAR_BEYOND_ROUNDING * near_origin;
+            let depths = [s.z * az, s.z * bz, s.z * cz];
+            let t = (u * depths[0] + v * depths[1] + w * depths[2]) / det;
+            let error = Triangle::depth_error(m, s.z, e, depths, t, det);
+            if t.abs() <= error {
+                let beyond = t + error < ray.tmin;
                 if !beyond {
                     out.undecided |= 1 << lane;
                 }
@@ -249,24 +252,27 @@ impl TrianglePacket {
             // other time, and cost more than the 25 instructions it saved (teapot +15%).
             // Lanes that are not open may divide by a zero `det`; their bits are masked out.
             let det = _mm_add_ps(_mm_add_ps(u, v), w);
+            let (za, zb, zc) = (_mm_mul_ps(sz, az), _mm_mul_ps(sz, bz), _mm_mul_ps(sz, cz));
             let depth = _mm_add_ps(
-                _mm_add_ps(
-                    _mm_mul_ps(u, _mm_mul_ps(sz, az)),
-                    _mm_mul_ps(v, _mm_mul_ps(sz, bz)),
-                ),
-                _mm_mul_ps(w, _mm_mul_ps(sz, cz)),
+                _mm_add_ps(_mm_mul_ps(u, za), _mm_mul_ps(v, zb)),
+                _mm_mul_ps(w, zc),
             );
             let t = _mm_div_ps(depth, det);
-            let near_origin = _mm_mul_ps(
-                _mm_mul_ps(_mm_set1_ps(Triangle::NEAR_ORIGIN_ULPS * f32::EPSILON), m),
-                abs(sz),
+            // `Triangle::depth_error`, lane by lane.
+            let spread = _mm_add_ps(
+                _mm_add_ps(abs(_mm_sub_ps(za, t)), abs(_mm_sub_ps(zb, t))),
+                abs(_mm_sub_ps(zc, t)),
             );
-            let near = _mm_movemask_ps(_mm_cmple_ps(abs(t), near_origin)) as u32;
+            let error = _mm_add_ps(
+                _mm_mul_ps(
+                    _mm_mul_ps(_mm_set1_ps(Triangle::NEAR_ORIGIN_ULPS * f32::EPSILON), m),
+                    abs(sz),
+                ),
+                _mm_div_ps(_mm_mul_ps(e, spread), abs(det)),
+            );
+            let near = _mm_movemask_ps(_mm_cmple_ps(abs(t), error)) as u32;
             let tmin = _mm_set1_ps(ray.tmin);
-            let beyond = _mm_movemask_ps(_mm_cmpgt_ps(
-                tmin,
-                _mm_mul_ps(_mm_set1_ps(Triangle::FAR_BEYOND_ROUNDING), near_origin),
-            )) as u32;
+            let beyond = _mm_movemask_ps(_mm_cmplt_ps(_mm_add_ps(t, error), tmin)) as u32;
             let in_range = _mm_and_ps(
                 _mm_and_ps(
                     _mm_cmpge_ps(t, tmin),
