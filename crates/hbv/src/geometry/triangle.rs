@@ -269,18 +269,42 @@ impl Triangle {
     pub(crate) const NEAR_ORIGIN_ULPS: f32 = 64.0;
 
     /// The ray parameter where the ray meets the triangle's plane, `t = Ng · (p0 − o) / Ng · d`
-    /// with `Ng = (p1 − p0) × (p2 − p0)`, evaluated in f64 and rounded once to f32.
+    /// with `Ng = (p1 − p0) × (p2 − p0)`, rounded once to f32, with the exact sign.
     ///
     /// Used only for hits next to the ray's origin. Woop's sheared-frame `t` rounds the exact
-    /// `t = 0` of an origin on the surface to a tiny value of either sign; here the differences of
-    /// f32 coordinates are exact in f64 and the products nearly so, so the sign is right, and `t`
-    /// is exactly 0 for an origin on an axis-aligned triangle (every `Ng · (p0 − o)` term is 0).
+    /// `t = 0` of an origin on the surface to a tiny value of either sign. Here the numerator
+    /// `Ng · (p0 − o)` is the orientation determinant `det[p0 − o, p1 − o, p2 − o]`, evaluated
+    /// by Shewchuk's adaptive predicate (`robust::orient3d`, "Adaptive Precision Floating-Point
+    /// Arithmetic and Fast Robust Geometric Predicates", 1997): exact in sign, and exactly 0 for
+    /// an origin on the plane, wherever it lies on it (before, the f64 dot product left a
+    /// rounding residue for an origin on a slanted triangle, and its sign could lose the
+    /// triangle the ray starts on). The denominator is an f64 dot product of exact vertex
+    /// differences: its sign is wrong only for a ray within about 10⁻¹⁵ of the plane's
+    /// direction, which the edge tests do not hand here.
     #[inline]
     fn plane_distance(&self, ray: &PreparedRay) -> f32 {
-        let p0 = self.p0.as_dvec3();
-        let normal = self.scaled_normal();
-        let direction = ray.direction.as_dvec3();
-        (normal.dot(p0 - ray.origin.as_dvec3()) / normal.dot(direction)) as f32
+        let point = |p: Vec3| robust::Coord3D {
+            x: p.x as f64,
+            y: p.y as f64,
+            z: p.z as f64,
+        };
+        let side = robust::orient3d(
+            point(self.p0),
+            point(self.p1),
+            point(self.p2),
+            point(ray.origin),
+        );
+        if side == 0.0 {
+            return 0.0;
+        }
+        let quotient = side / self.scaled_normal().dot(ray.direction.as_dvec3());
+        let t = quotient as f32;
+        if t == 0.0 && quotient != 0.0 {
+            // Below f32's range: the nearest nonzero f32 of the quotient's sign, since ahead of
+            // the origin is not behind it (`-0.0` would pass `t >= 0`).
+            return f32::from_bits(1).copysign(t);
+        }
+        t
     }
 }
 
@@ -420,6 +444,28 @@ mod tests {
                 .intersect(&PreparedRay::new(&Ray::new(o, d)))
                 .expect("starts on the wall");
             assert_eq!(h.t, 0.0, "ray {k}");
+        }
+    }
+
+    #[test]
+    fn an_origin_exactly_on_a_slanted_face_hits_it_at_zero() {
+        // A face of an icosphere and a ray starting exactly on its plane (so exact rational
+        // arithmetic says): the f64 plane distance came out a hair negative and lost the face
+        // the ray starts on, where Embree hit it at t = 5e-10. Found against Embree.
+        let face = Triangle::new(
+            Vec3::new(1.7236627, 1.685341, -1.7856686),
+            Vec3::new(1.685341, 1.7856686, -1.7236627),
+            Vec3::new(1.7856686, 1.7236627, -1.685341),
+        );
+        let o = Vec3::new(1.7457268, 1.7083832, -1.7405623);
+        for d in [
+            Vec3::new(-0.11094283, 0.651853, 0.75018615),
+            Vec3::new(0.11094283, -0.651853, -0.75018615),
+        ] {
+            let hit = face
+                .intersect(&PreparedRay::new(&Ray::new(o, d)))
+                .expect("starts on the face");
+            assert_eq!(hit.t, 0.0, "{d}");
         }
     }
 
