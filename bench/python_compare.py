@@ -39,6 +39,13 @@ those whose nearest point is inside a face: on edges and vertices the triangles 
 tie), and
 that hbv's closest points are the same on one thread and on all.
 
+First calls: one query on a structure made just before it, `hbv.BVH(mesh)` and the query
+against Open3D's scene (nearest points) or embreex's (closest hits, one thread), 1,000 and
+65,536 points or random rays, each made and asked `--repeat` times, median: what a script that
+builds once and asks once waits for (Open3D and Embree build their trees on the first query;
+hbv makes its nearest-point tree on the first `closest_point`, and a candidate grid only once
+enough points have been asked for).
+
 Both sides get the same float32 points (`hbv.BVH.closest_point(points)` reads the array as is,
 Open3D a `Tensor` of it); Open3D's `nthreads=0` means every core, as hbv's `threads=None`.
 
@@ -259,11 +266,72 @@ def compare_mesh(path, args):
         "same_answers_1_and_all": bool(np.array_equal(answers["hbv_1"]["prim"], answers["hbv_all"]["prim"])
                                        and np.array_equal(ours, answers["hbv_all"]["distance"])),
     }
+    closest["first_call_ms"] = time_first_calls(mesh, v, f, points, sets.get("random"), args.repeat)
     print(f"{path.name} closest point: " + ", ".join(
         f"{k} {x:.3f}" for k, x in closest["mqueries_per_s"].items())
         + "; page faults per call: " + ", ".join(f"{k} {x:g}" for k, x in FAULTS.items()),
         file=sys.stderr)
     return rows, closest, others, cores
+
+
+FIRST_CALL_SIZES = (1_000, 65_536)
+
+
+def time_first_calls(mesh, v, f, points, rays, repeat):
+    """{query_size_who: median ms} of one query on a structure made just before it, made and
+    queried `repeat` times: what a script that builds once and asks once waits for. Nearest
+    points: `hbv.BVH` + `closest_point` (all threads) against Open3D's `RaycastingScene` +
+    `add_triangles` + `compute_closest_points`; closest hits: `hbv.BVH` + `intersect` against
+    embreex's scene + `run` (one thread: embreex has no other)."""
+    import open3d as o3d
+    from embreex import rtcore_scene
+    from embreex.mesh_construction import TriangleMesh as EmbreeMesh
+
+    def open3d_closest(p):
+        scene = o3d.t.geometry.RaycastingScene()
+        scene.add_triangles(o3d.core.Tensor(v), o3d.core.Tensor(f.astype(np.uint32)))
+        return scene.compute_closest_points(o3d.core.Tensor(p))
+
+    def embree_first(o, d):
+        scene = rtcore_scene.EmbreeScene()
+        EmbreeMesh(scene, v[f].astype(np.float32))
+        return scene.run(o, d, output=1)
+
+    calls = {}
+    for n in FIRST_CALL_SIZES:
+        p = points[:n]
+        calls[f"closest_{n}_hbv"] = lambda p=p: hbv.BVH(mesh).closest_point(p)
+        calls[f"closest_{n}_open3d"] = lambda p=p: open3d_closest(p)
+        if rays is not None:
+            o, d = rays[0][:n], rays[1][:n]
+            calls[f"intersect_{n}_hbv"] = lambda o=o, d=d: hbv.BVH(mesh).intersect(o, d, threads=1)
+            calls[f"intersect_{n}_embreex"] = lambda o=o, d=d: embree_first(o, d)
+    times = {name: [] for name in calls}
+    for _ in range(repeat):
+        for name, fn in calls.items():
+            start = time.perf_counter()
+            fn()
+            times[name].append(time.perf_counter() - start)
+    return {name: 1e3 * statistics.median(t) for name, t in times.items()}
+
+
+def print_first_call_table(closest):
+    print("\nOne query on a structure made just before it (build + query), ms, median; ratios are "
+          "the other's time / hbv's (above 1: hbv is faster).\n")
+    print("| mesh | query | " + " | ".join(
+        f"{n:,}: hbv | other | **other / hbv**" for n in FIRST_CALL_SIZES) + " |")
+    print("| --- | --- |" + " ---: | ---: | ---: |" * len(FIRST_CALL_SIZES))
+    for c in closest:
+        ms = c.get("first_call_ms", {})
+        for query, other in [("closest", "open3d"), ("intersect", "embreex")]:
+            if f"{query}_{FIRST_CALL_SIZES[0]}_hbv" not in ms:
+                continue
+            label = "`closest_point` / Open3D" if query == "closest" else "`intersect` (1 thread) / embreex"
+            cells = []
+            for n in FIRST_CALL_SIZES:
+                ours, theirs = ms[f"{query}_{n}_hbv"], ms[f"{query}_{n}_{other}"]
+                cells.append(f"{ours:.1f} | {theirs:.1f} | **{theirs / ours:.2f}×**")
+            print(f"| {c['mesh']} | {label} | " + " | ".join(cells) + " |")
 
 
 def compare_other_queries(path, bvh, tm, tm_embree, o, d, points, repeat):
@@ -302,6 +370,7 @@ def print_tables(rows, closest, others, cores):
     if rows:
         print_ray_table(rows, cores)
     print_closest_table(closest)
+    print_first_call_table(closest)
     if others:
         print_other_table(others, cores)
 

@@ -290,6 +290,14 @@ def test_closest_point_in_a_room_of_large_walls():
     # Points whose nearest feature is only on the duplicated face never name the copy.
     assert not (got["prim"] == len(faces) - 1).any()
     # The same answers on one thread and on all.
-    again = hbv.BVH(mesh).closest_point(points, threads=1)
+    bvh = hbv.BVH(mesh)
+    again = bvh.closest_point(points, threads=1)
     np.testing.assert_array_equal(again["prim"], got["prim"])
     np.testing.assert_array_equal(again["distance"], got["distance"])
+    # And once enough points have been asked for that the candidate grid is made (131,072
+    # for the default grid, the batch that reaches it included), the same answers from it.
+    rng = np.random.default_rng(5)
+    bvh.closest_point(v.min(0) - 1.0 + (v.max(0) - v.min(0) + 2.0) * rng.random((140_000, 3)))
+    from_grid = bvh.closest_point(points)
+    for key in ("point", "distance", "prim", "u", "v"):
+        np.testing.assert_array_equal(from_grid[key], got[key])

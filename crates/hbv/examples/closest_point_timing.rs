@@ -1,7 +1,9 @@
 //! Times `ClosestPointTree::closest_points` on a mesh file, one thread, the points of
 //! `bench/python_compare.py` (uniform in the mesh's box grown 10 % on each side):
-//! `cargo run --release -p hbv --example closest_point_timing -- MESH [POINTS] [ROUNDS] [LEAF_TRIANGLES] [aligned] [cells=N] [candidates=K] [margin=F] [listing=F]`
-//! (`cells=0`: no candidate grid, batches sorted in Morton order as before it).
+//! `cargo run --release -p hbv --example closest_point_timing -- MESH [POINTS] [ROUNDS] [LEAF_TRIANGLES] [aligned] [cells=N] [candidates=K] [margin=F] [listing=F] [payback=F]`
+//! (`cells=0`: no candidate grid, batches sorted in Morton order as before it; the grid is made
+//! with the tree, inside the build time printed, unless `payback=F` says after how many points
+//! per cell).
 //! Prints the build time of the search tree and the median and best M queries/s. With `tally`,
 //! also the search's nodes, packets and exact tests per query by distance band (share of the
 //! mesh's box diagonal) and side (the nearest face's normal: outside or inside).
@@ -15,7 +17,10 @@ use hbv::TriangleMesh;
 use rand::{RngExt, SeedableRng};
 
 fn main() {
-    let mut grid = CandidateGridConfig::default();
+    let mut grid = CandidateGridConfig {
+        payback: 0.0,
+        ..CandidateGridConfig::default()
+    };
     let mut all: Vec<String> = std::env::args().skip(1).collect();
     let tally = all.iter().any(|a| a == "tally");
     all.retain(|a| a != "tally");
@@ -25,6 +30,7 @@ fn main() {
             Some(("candidates", n)) => grid.max_candidates = n.parse().unwrap(),
             Some(("margin", f)) => grid.margin = f.parse().unwrap(),
             Some(("listing", f)) => grid.min_listing = f.parse().unwrap(),
+            Some(("payback", f)) => grid.payback = f.parse().unwrap(),
             _ => {}
         }
     }

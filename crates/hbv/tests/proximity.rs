@@ -10,7 +10,7 @@ use hbv::geometry::Aabb;
 use hbv::glam::{DVec3, Vec3};
 use hbv::mesh::procedural::{icosphere, torus};
 use hbv::proximity::{
-    closest_point_brute_force, contains, CandidateGridConfig, ClosestPointColumns,
+    closest_point_brute_force, contains, CandidateGridConfig, ClosestPoint, ClosestPointColumns,
     ClosestPointTree, FlatPoints, QueryPoints, SearchTally, SearchTreeConfig,
 };
 use hbv::{BruteForce, TriangleMesh};
@@ -108,15 +108,19 @@ fn grid_config() -> impl Strategy<Value = CandidateGridConfig> {
         prop_oneof![1usize..4, 4usize..64],
         prop_oneof![Just(0.0f64), Just(0.25), 0.0f64..2.0],
         prop_oneof![Just(0.0f64), Just(0.5)],
+        // Made with the tree, or after a few dozen points (between the single queries, or at
+        // the batch).
+        prop_oneof![Just(0.0f64), 0.0f64..0.05],
     )
-        .prop_map(
-            |(cells, max_candidates, margin, min_listing)| CandidateGridConfig {
+        .prop_map(|(cells, max_candidates, margin, min_listing, payback)| {
+            CandidateGridConfig {
                 cells,
                 max_candidates,
                 margin,
                 min_listing,
-            },
-        )
+                payback,
+            }
+        })
 }
 
 fn assert_closest_points_agree_with(
@@ -136,10 +140,14 @@ fn assert_closest_points_agree_with(
     sah_config.leaf.max_leaf_size = leaf;
     let sah = BinnedSahBuilder::new(sah_config).build(mesh);
     // The insertion tree with the grid asked for, the SAH tree with the default one (32,768
-    // cells: the product's).
+    // cells: the product's), made at once.
+    let product_grid = CandidateGridConfig {
+        payback: 0.0,
+        ..CandidateGridConfig::default()
+    };
     for (name, tree, grid) in [
         ("insertion", insertion, grid),
-        ("binned-sah", sah, CandidateGridConfig::default()),
+        ("binned-sah", sah, product_grid),
     ] {
         let search = ClosestPointTree::with_grid(&tree, mesh, config, grid);
         for (i, p) in points.iter().enumerate() {
@@ -635,6 +643,53 @@ fn closest_point_on_a_torus_is_on_its_tube() {
         .is_none());
 }
 
+/// The grid is made once the points asked for reach `payback` per cell, counting the batch
+/// that reaches it, and the answers are the brute force's before and after.
+#[test]
+fn the_grid_is_made_once_enough_points_are_asked_for() {
+    use proptest::strategy::ValueTree;
+    let mut runner = proptest::test_runner::TestRunner::deterministic();
+    let (mesh, _) = room_and_points().new_tree(&mut runner).unwrap().current();
+    let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+    let config = CandidateGridConfig {
+        cells: 512,
+        payback: 2.0,
+        ..CandidateGridConfig::default()
+    };
+    let search = ClosestPointTree::with_grid(&tree, &mesh, SearchTreeConfig::default(), config);
+    let b = mesh.bounds();
+    let points: Vec<DVec3> = (0..1100)
+        .map(|i| {
+            let t = Vec3::new(
+                (i % 11) as f32 / 10.0,
+                (i / 11 % 10) as f32 / 9.0,
+                (i / 110) as f32 / 9.0,
+            );
+            (b.min - (b.max - b.min) * 0.2 + (b.max - b.min) * 1.4 * t).as_dvec3()
+        })
+        .collect();
+    let agree = |found: Vec<Option<ClosestPoint>>, points: &[DVec3]| {
+        for (p, got) in points.iter().zip(found) {
+            assert_eq!(got, closest_point_brute_force(&mesh, *p), "{p:?}");
+        }
+    };
+    // 1,000 points of the 1,024 the grid waits for: searched without it.
+    agree(search.closest_points(&points[..1000]), &points[..1000]);
+    assert_eq!(search.grid_summary(), (0, 0, 0));
+    // Single queries count too, and the 24th more makes it.
+    for p in &points[1000..1023] {
+        agree(vec![search.closest_point_f64(*p)], &[*p]);
+    }
+    assert_eq!(search.grid_summary(), (0, 0, 0));
+    agree(search.closest_points(&points[1023..]), &points[1023..]);
+    let (cells, listing, _) = search.grid_summary();
+    assert!(
+        cells >= 512 && listing > 0,
+        "{cells} cells, {listing} listing"
+    );
+    agree(search.closest_points(&points), &points);
+}
+
 /// On a room of large walls most cells of the default grid list their candidates (the fast
 /// path is the one exercised), and a lattice of points through walls, edges, corners and
 /// cell boundaries gets the brute force's answers.
@@ -644,7 +699,11 @@ fn room_grid_lists_candidates_and_agrees() {
     let mut runner = proptest::test_runner::TestRunner::deterministic();
     let (mesh, _) = room_and_points().new_tree(&mut runner).unwrap().current();
     let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
-    let search = ClosestPointTree::new(&tree, &mesh);
+    let at_once = CandidateGridConfig {
+        payback: 0.0,
+        ..CandidateGridConfig::default()
+    };
+    let search = ClosestPointTree::with_grid(&tree, &mesh, SearchTreeConfig::default(), at_once);
     let (cells, listing, _) = search.grid_summary();
     assert!(
         cells > 20_000 && listing * 10 > cells * 8,

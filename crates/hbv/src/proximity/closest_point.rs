@@ -1,5 +1,8 @@
 //! The nearest point of a mesh's surface to a query point: a branch-and-bound search of a BVH.
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::OnceLock;
+
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
@@ -52,13 +55,31 @@ pub struct ClosestPoint {
 /// ever pruned, so the answers are the brute force's, ties included (smallest face id).
 /// Degenerate triangles are left out, as in every tree (they have no face to be nearest to, and
 /// their edges are other triangles' edges on meshes that matter).
-#[derive(Clone, Debug)]
+#[derive(Debug)]
 pub struct ClosestPointTree {
     tree: SearchTree,
-    /// Candidate lists and seeds per cell of the space around the mesh (`None`: no grid, or one
-    /// whose cells would mostly seed searches; batches are then sorted and seeded from their
-    /// neighbours).
-    grid: Option<CandidateGrid>,
+    /// Candidate lists and seeds per cell of the space around the mesh, made once enough points
+    /// have been asked for ([`CandidateGridConfig::payback`]; unset until then). `None` inside:
+    /// no grid, or one whose cells would mostly seed searches; batches are then sorted and
+    /// seeded from their neighbours.
+    grid: OnceLock<Option<CandidateGrid>>,
+    grid_config: CandidateGridConfig,
+    /// The mesh's box, which the grid covers (grown).
+    bounds: (DVec3, DVec3),
+    /// Points asked for so far, until the grid is made.
+    queried: AtomicUsize,
+}
+
+impl Clone for ClosestPointTree {
+    fn clone(&self) -> Self {
+        Self {
+            tree: self.tree.clone(),
+            grid: self.grid.clone(),
+            grid_config: self.grid_config,
+            bounds: self.bounds,
+            queried: AtomicUsize::new(self.queried.load(Ordering::Relaxed)),
+        }
+    }
 }
 
 /// Output columns for [`ClosestPointTree::closest_points_into`], one entry per query point:
@@ -228,26 +249,64 @@ impl ClosestPointTree {
     }
 
     /// [`ClosestPointTree::with_config`] with the candidate grid of `grid` (module
-    /// `candidate_grid`; `grid.cells == 0` for none).
+    /// `candidate_grid`; `grid.cells == 0` for none), made with the tree if `grid.payback` is
+    /// 0, otherwise once enough points have been asked for.
     pub fn with_grid(
         tree: &BuildTree,
         mesh: &TriangleMesh,
         config: SearchTreeConfig,
         grid: CandidateGridConfig,
     ) -> Self {
-        let mut search = Self {
-            tree: SearchTree::new(tree, mesh, config),
-            grid: None,
-        };
         let b = mesh.bounds();
-        search.grid = CandidateGrid::new(&search, (b.min.as_dvec3(), b.max.as_dvec3()), grid);
+        let search = Self {
+            tree: SearchTree::new(tree, mesh, config),
+            grid: OnceLock::new(),
+            grid_config: grid,
+            bounds: (b.min.as_dvec3(), b.max.as_dvec3()),
+            queried: AtomicUsize::new(0),
+        };
+        if search.grid_threshold() == 0 {
+            search.grid_for(0);
+        }
         search
     }
 
     /// The candidate grid's number of cells, of cells listing their candidates, and of
-    /// candidates listed (zeros without a grid).
+    /// candidates listed (zeros without a grid, or before it is made).
     pub fn grid_summary(&self) -> (usize, usize, usize) {
-        self.grid.as_ref().map_or((0, 0, 0), CandidateGrid::summary)
+        self.grid().map_or((0, 0, 0), CandidateGrid::summary)
+    }
+
+    /// The grid, if it has been made and is used.
+    fn grid(&self) -> Option<&CandidateGrid> {
+        self.grid.get().and_then(Option::as_ref)
+    }
+
+    /// Points asked for after which the grid is made ([`CandidateGridConfig::payback`]).
+    fn grid_threshold(&self) -> usize {
+        let config = &self.grid_config;
+        if config.cells == 0 {
+            return usize::MAX;
+        }
+        (config.payback.max(0.0) * config.cells as f64).min(usize::MAX as f64) as usize
+    }
+
+    /// The grid for a batch of `n` points: made now if the points asked for, these included,
+    /// reach [`ClosestPointTree::grid_threshold`].
+    fn grid_for(&self, n: usize) -> Option<&CandidateGrid> {
+        if let Some(made) = self.grid.get() {
+            return made.as_ref();
+        }
+        let asked = self
+            .queried
+            .fetch_add(n, Ordering::Relaxed)
+            .saturating_add(n);
+        if asked < self.grid_threshold() {
+            return None;
+        }
+        self.grid
+            .get_or_init(|| CandidateGrid::new(self, self.bounds, self.grid_config))
+            .as_ref()
     }
 
     /// The nearest surface point to `point`; `None` for an empty tree or a point with a NaN or
@@ -297,7 +356,7 @@ impl ClosestPointTree {
     /// without a grid).
     #[inline(always)]
     fn query<M: SearchLanes>(&self, p: DVec3, stack: &mut Vec<Pending>) -> Option<ClosestPoint> {
-        let Some(grid) = &self.grid else {
+        let Some(grid) = self.grid_for(1) else {
             return self.search::<M>(p, None, stack, &mut ()).map(|(c, _)| c);
         };
         self.query_in_cell::<M>(grid, p, grid.locate(p), stack)
@@ -344,11 +403,11 @@ impl ClosestPointTree {
     /// every triangle it does not prune, pruning stays conservative, and the seed triangle's
     /// `d²` is computed exactly as when its leaf is reached.
     pub fn closest_points(&self, points: &[DVec3]) -> Vec<Option<ClosestPoint>> {
-        if self.grid.is_some() {
+        if let Some(grid) = self.grid_for(points.len()) {
             let mut out = vec![None; points.len()];
             out.par_chunks_mut(Self::RUN)
                 .zip(points.par_chunks(Self::RUN))
-                .for_each(|(out, run)| self.answer_run(run, |k, found| out[k] = found));
+                .for_each(|(out, run)| self.answer_run(grid, run, |k, found| out[k] = found));
             return out;
         }
         let (order, sorted) = self.search_in_morton_order(points, Threads::Pool);
@@ -404,6 +463,7 @@ impl ClosestPointTree {
             [point.len(), distance.len(), prim.len(), u.len(), v.len()] == [n; 5],
             "closest_points_into: every column must have one entry per point"
         );
+        let grid = self.grid_for(n);
         if n <= Self::RUN {
             // One run: answered on the calling thread, in the points' own order. No pool
             // thread to wake (from Python, 10 points took 76 µs through the pool against 21 µs
@@ -411,8 +471,8 @@ impl ClosestPointTree {
             // not depend on the order (module notes).
             let run = run_of(points, 0, n);
             let mut found = vec![None; n];
-            if self.grid.is_some() {
-                self.answer_run(&run[..n], |k, answer| found[k] = answer);
+            if let Some(grid) = grid {
+                self.answer_run(grid, &run[..n], |k, answer| found[k] = answer);
             } else {
                 self.search_run(&run[..n], &mut found);
             }
@@ -435,12 +495,12 @@ impl ClosestPointTree {
             threads
         };
         let columns = (point, distance, prim, u, v);
-        if self.grid.is_some() {
+        if let Some(grid) = grid {
             for_each_column_run(threads, columns, |r, (point, distance, prim, u, v)| {
                 let first = r * Self::RUN;
                 let len = point.len();
                 let run = run_of(points, first, len);
-                self.answer_run(&run[..len], |k, found| {
+                self.answer_run(grid, &run[..len], |k, found| {
                     write_row(
                         found,
                         k,
@@ -493,26 +553,41 @@ impl ClosestPointTree {
     /// Answers one run of points from the grid (each query's cell), passing point `k`'s answer
     /// to `write(k, answer)`: compiled for AVX2 and FMA where the CPU has them, as
     /// [`ClosestPointTree::search_run`].
-    fn answer_run(&self, run: &[DVec3], write: impl FnMut(usize, Option<ClosestPoint>)) {
+    fn answer_run(
+        &self,
+        grid: &CandidateGrid,
+        run: &[DVec3],
+        write: impl FnMut(usize, Option<ClosestPoint>),
+    ) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
         {
             // SAFETY: the CPU has AVX2 and FMA, the features `answer_run_avx2` is compiled for.
-            unsafe { self.answer_run_avx2(run, write) };
+            unsafe { self.answer_run_avx2(grid, run, write) };
             return;
         }
-        self.answer_run_portable(run, write);
+        self.answer_run_portable(grid, run, write);
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    fn answer_run_avx2(&self, run: &[DVec3], write: impl FnMut(usize, Option<ClosestPoint>)) {
-        self.answer_run_with::<AvxLanes>(run, write);
+    fn answer_run_avx2(
+        &self,
+        grid: &CandidateGrid,
+        run: &[DVec3],
+        write: impl FnMut(usize, Option<ClosestPoint>),
+    ) {
+        self.answer_run_with::<AvxLanes>(grid, run, write);
     }
 
     /// [`ClosestPointTree::answer_run`] for the x86-64 baseline.
-    fn answer_run_portable(&self, run: &[DVec3], write: impl FnMut(usize, Option<ClosestPoint>)) {
-        self.answer_run_with::<PortableLanes>(run, write);
+    fn answer_run_portable(
+        &self,
+        grid: &CandidateGrid,
+        run: &[DVec3],
+        write: impl FnMut(usize, Option<ClosestPoint>),
+    ) {
+        self.answer_run_with::<PortableLanes>(grid, run, write);
     }
 
     /// [`ClosestPointTree::answer_run`] with the lane masks `M`, in whatever features its
@@ -520,16 +595,11 @@ impl ClosestPointTree {
     #[inline(always)]
     fn answer_run_with<M: SearchLanes>(
         &self,
+        grid: &CandidateGrid,
         run: &[DVec3],
         mut write: impl FnMut(usize, Option<ClosestPoint>),
     ) {
         let mut stack = Vec::with_capacity(64);
-        let Some(grid) = &self.grid else {
-            for (k, &p) in run.iter().enumerate() {
-                write(k, self.query::<M>(p, &mut stack));
-            }
-            return;
-        };
         // Each query's cell is located and asked for `RING` queries before it is answered, and
         // its list (once the cell has arrived) `RING / 2` before: the grid's two dependent
         // loads overlap other queries' work instead of waiting on L3 in turn. Point `k`'s cell
@@ -958,20 +1028,25 @@ mod tests {
             let grid = CandidateGridConfig {
                 cells,
                 min_listing: 0.0,
+                payback: 0.0,
                 ..CandidateGridConfig::default()
             };
             let search =
                 ClosestPointTree::with_grid(&tree, &mesh, SearchTreeConfig::default(), grid);
+            assert_eq!(search.grid().is_some(), cells > 0);
             let points = points_around(&mesh);
             let n = points.len();
             let (mut detected, mut portable) = (vec![None; n], vec![None; n]);
             search.search_run(&points, &mut detected);
             search.search_run_portable(&points, &mut portable);
             assert_eq!(detected, portable);
-            let (mut detected, mut portable) = (vec![None; n], vec![None; n]);
-            search.answer_run(&points, |k, found| detected[k] = found);
-            search.answer_run_portable(&points, |k, found| portable[k] = found);
-            assert_eq!(detected, portable);
+            if let Some(grid) = search.grid() {
+                let (mut detected, mut from_grid) = (vec![None; n], vec![None; n]);
+                search.answer_run(grid, &points, |k, found| detected[k] = found);
+                search.answer_run_portable(grid, &points, |k, found| from_grid[k] = found);
+                assert_eq!(detected, from_grid);
+                assert_eq!(from_grid, portable);
+            }
             for (i, p) in points.iter().enumerate() {
                 assert_eq!(portable[i], closest_point_brute_force(&mesh, *p), "{p:?}");
             }
