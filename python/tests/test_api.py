@@ -54,6 +54,11 @@ def test_bad_arguments_raise_clear_errors(sphere):
             bvh.intersect(o, d, threads=bad)
     with pytest.raises(ValueError, match="threads"):
         bvh.closest_point(np.zeros((2, 3)), threads=-2)
+    # More threads than any machine has are refused at once (100,000 took minutes to start).
+    for bad in (1025, 100_000):
+        with pytest.raises(ValueError, match=f"threads: at most 1024, or None for all cores; got {bad}"):
+            bvh.intersect(o, d, threads=bad)
+    bvh.intersect(o, d, threads=1024)
     with pytest.raises(ValueError, match="points: expected shape"):
         bvh.closest_point(np.zeros((2, 2)))
     with pytest.raises(TypeError, match="mesh: expected an hbv.Mesh"):

@@ -17,18 +17,40 @@ static COUNTER: AtomicU64 = AtomicU64::new(0);
 /// left untouched. `write` must flush any buffering it adds (a `BufWriter` dropped unflushed
 /// swallows its errors).
 ///
+/// A symbolic link at `path` is written through: the file it points to is replaced, the link is
+/// kept. A path that is not a regular file but exists — a device such as `/dev/null`, a named
+/// pipe, a socket — is written into in place, since nothing there can be replaced atomically
+/// (renaming over it would put a regular file in the device's place); a directory is refused.
+///
 /// Every error names `path` and keeps the [`io::ErrorKind`] of its cause; a parent directory that
 /// does not exist is reported as such.
 pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut File) -> io::Result<()>,
 ) -> io::Result<()> {
+    let path = &through_links(path);
     let fail = |e: io::Error, what: &str| {
         io::Error::new(
             e.kind(),
             format!("cannot write {}: {what}: {e}", path.display()),
         )
     };
+    match fs::metadata(path) {
+        Ok(m) if m.is_dir() => {
+            return Err(io::Error::new(
+                io::ErrorKind::IsADirectory,
+                format!("cannot write {}: it is a directory", path.display()),
+            ))
+        }
+        Ok(m) if !m.is_file() => {
+            let mut file = OpenOptions::new()
+                .write(true)
+                .open(path)
+                .map_err(|e| fail(e, "cannot open it"))?;
+            return write(&mut file).map_err(|e| fail(e, "writing failed"));
+        }
+        _ => {}
+    }
     let name = path.file_name().ok_or_else(|| {
         io::Error::new(
             io::ErrorKind::InvalidInput,
@@ -96,6 +118,32 @@ pub fn write_atomically(
             Err(e)
         }
     }
+}
+
+/// Whether writing `path` would replace something the user has, and so needs `--force`: a
+/// regular file or a directory (through links), or a dangling link. A device, a named pipe or a
+/// socket is not in the way: it is written into, not replaced ([`write_atomically`]).
+pub fn in_the_way(path: &Path) -> bool {
+    match fs::metadata(path) {
+        Ok(m) => m.is_file() || m.is_dir(),
+        Err(_) => fs::symlink_metadata(path).is_ok(),
+    }
+}
+
+/// `path` with symbolic links followed to the path they name (existing or not), up to 40 links.
+fn through_links(path: &Path) -> PathBuf {
+    let mut path = path.to_path_buf();
+    for _ in 0..40 {
+        match fs::symlink_metadata(&path) {
+            Ok(m) if m.file_type().is_symlink() => match fs::read_link(&path) {
+                Ok(target) if target.is_absolute() => path = target,
+                Ok(target) => path = path.parent().unwrap_or_else(|| Path::new(".")).join(target),
+                Err(_) => break,
+            },
+            _ => break,
+        }
+    }
+    path
 }
 
 /// Creates a new, empty temporary file for `name` in `dir`, never reusing an existing file.

@@ -460,6 +460,73 @@ fn unwritable_output_paths_are_one_line_and_leave_nothing() {
     assert_eq!(s.files(), before);
 }
 
+/// `--out /dev/null` (a device: nothing the user has is replaced) needs no `--force`, and the
+/// device stays a device (it was renamed over, as root, before); a link is written through.
+#[cfg(unix)]
+#[test]
+fn devices_are_written_into_and_links_through() {
+    use std::os::unix::fs::FileTypeExt;
+    let s = Scene::new();
+    let null = Path::new("/dev/null");
+    if std::fs::metadata(null).is_ok_and(|m| m.file_type().is_char_device()) {
+        let output = trace_to(&s, null, false);
+        assert!(
+            output.status.success(),
+            "{}",
+            String::from_utf8_lossy(&output.stderr)
+        );
+        assert!(std::fs::metadata(null)
+            .unwrap()
+            .file_type()
+            .is_char_device());
+    }
+    let target = s.write("kept.npz", "old");
+    std::os::unix::fs::symlink("kept.npz", s.path("link.npz")).unwrap();
+    let output = trace_to(&s, &s.path("link.npz"), true);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    assert!(std::fs::symlink_metadata(s.path("link.npz"))
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert_eq!(hit_file::read_hits(&target).unwrap().len(), 2);
+}
+
+/// Thread and ray counts past what any machine uses are refused at once (tens of thousands of
+/// threads took minutes to start; `bench --rays 2^64 - 1` overflowed an allocation).
+#[test]
+fn absurd_thread_and_ray_counts_are_one_line() {
+    let s = Scene::new();
+    let (mesh, rays, out) = (s.path("tetra.obj"), s.path("rays.npz"), s.path("hits.npz"));
+    let line = one_error_line(&hbv(&[
+        OsStr::new("trace"),
+        mesh.as_os_str(),
+        OsStr::new("--rays"),
+        rays.as_os_str(),
+        OsStr::new("--out"),
+        out.as_os_str(),
+        OsStr::new("--threads"),
+        OsStr::new("100000"),
+    ]));
+    assert!(
+        line.ends_with("--threads 100000: at most 1024 (0 uses every core)"),
+        "{line}"
+    );
+    assert!(!out.exists());
+    for rays in ["18446744073709551615", "4000000000", "0"] {
+        let output = hbv(&["bench", mesh.to_str().unwrap(), "--rays", rays]);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{stderr}");
+        assert!(
+            stderr.contains("expected 1 to 134217728 rays per set"),
+            "{stderr}"
+        );
+    }
+}
+
 #[cfg(unix)]
 #[test]
 fn read_only_output_folder_is_one_line_unless_privileged() {

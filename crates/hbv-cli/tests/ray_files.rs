@@ -523,6 +523,59 @@ fn atomic_write_replaces_the_file() {
     assert_eq!(entries(dir.path()), vec![path]);
 }
 
+/// A symbolic link is written through: its target gets the new contents, the link stays a link.
+#[cfg(unix)]
+#[test]
+fn atomic_write_through_a_link_keeps_the_link() {
+    let dir = tmp();
+    let target = dir.path().join("target.bin");
+    let link = dir.path().join("link.bin");
+    fs::write(&target, b"old").unwrap();
+    std::os::unix::fs::symlink("target.bin", &link).unwrap();
+    write_atomically(&link, |f| f.write_all(b"new")).unwrap();
+    assert!(fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert_eq!(fs::read(&target).unwrap(), b"new");
+    assert_eq!(entries(dir.path()), vec![link, target]);
+}
+
+/// What is not a regular file is written into in place, never replaced by one: a named pipe
+/// (read on another thread), `/dev/null`; `/dev/full` reports its error; a directory is refused.
+#[cfg(unix)]
+#[test]
+fn atomic_write_into_devices_and_pipes_writes_in_place() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = tmp();
+    let fifo = dir.path().join("pipe");
+    let c_path = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
+    // SAFETY: a NUL-terminated path; mkfifo reads it and returns a status.
+    assert_eq!(unsafe { libc::mkfifo(c_path.as_ptr(), 0o600) }, 0);
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || fs::read(fifo).unwrap())
+    };
+    write_atomically(&fifo, |f| f.write_all(b"through the pipe")).unwrap();
+    assert_eq!(reader.join().unwrap(), b"through the pipe");
+    assert!(fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
+    assert_eq!(entries(dir.path()), vec![fifo]);
+
+    let null = Path::new("/dev/null");
+    if fs::metadata(null).is_ok_and(|m| m.file_type().is_char_device()) {
+        write_atomically(null, |f| f.write_all(b"gone")).unwrap();
+        assert!(fs::metadata(null).unwrap().file_type().is_char_device());
+    }
+    let full = Path::new("/dev/full");
+    if fs::metadata(full).is_ok_and(|m| m.file_type().is_char_device()) {
+        let e = write_atomically(full, |f| f.write_all(b"no room")).unwrap_err();
+        assert_mentions(&e.to_string(), &["/dev/full"]);
+        assert!(fs::metadata(full).unwrap().file_type().is_char_device());
+    }
+    let e = write_atomically(dir.path(), |f| f.write_all(b"x")).unwrap_err();
+    assert_mentions(&e.to_string(), &["is a directory"]);
+}
+
 #[test]
 fn atomic_write_failure_keeps_original_and_cleans_up() {
     let dir = tmp();

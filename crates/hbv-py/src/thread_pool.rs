@@ -25,6 +25,10 @@ pub const GRAIN: usize = 256;
 /// between calls; BENCHMARKS.md).
 pub const SERIAL_ROWS: usize = 8 * GRAIN;
 
+/// The most threads `threads=` may ask for: starting 100,000 took minutes, for no gain on any
+/// machine.
+pub const MAX_THREADS: usize = 1024;
+
 /// A `threads=` count as Python gives it: a positive integer (`None`, every core, is the
 /// `Option` around it). Zero, negative, fractional and non-numeric counts are refused when the
 /// arguments are read, before any work, with one message naming the argument.
@@ -64,6 +68,9 @@ impl<'a, 'py> FromPyObject<'a, 'py> for ThreadCount {
             return Err(refused());
         }
         match obj.extract::<i64>() {
+            Ok(n) if n > MAX_THREADS as i64 => Err(PyValueError::new_err(format!(
+                "threads: at most {MAX_THREADS}, or None for all cores; got {n}"
+            ))),
             Ok(n) if n >= 1 => usize::try_from(n).map(Self).map_err(|_| refused()),
             _ => Err(refused()),
         }

@@ -676,3 +676,83 @@ fn gltf_sparse_and_view_less_accessors_are_refused_before_reading() {
         "sparse.gltf: accessor 0: POSITION is a sparse accessor; sparse accessors are not supported"
     );
 }
+
+/// A buffer is read from a regular file only, and only the bytes it declares: a device named
+/// by its URI is refused (`/dev/zero` was read for ever), as are unknown URI schemes and
+/// percent-escapes that are not UTF-8 (the `gltf` crate's reader panicked on those).
+#[test]
+fn gltf_buffers_are_read_from_regular_files_only() {
+    let with_uri = |uri: &str| {
+        format!(
+            r#"{{"asset":{{"version":"2.0"}},"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+            "buffers":[{{"byteLength":36,"uri":"{uri}"}}],"bufferViews":[{{"buffer":0,"byteLength":36}}],
+            "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}]}}"#
+        )
+    };
+    #[cfg(unix)]
+    for device in ["/dev/zero", "file:///dev/zero"] {
+        let m = load_error("device.gltf", with_uri(device));
+        assert!(m.contains("/dev/zero is not a regular file"), "{m}");
+    }
+    let m = load_error("scheme.gltf", with_uri("https://example.com/data.bin"));
+    assert!(
+        m.contains("the URI scheme 'https:' is not supported"),
+        "{m}"
+    );
+    let m = load_error("escape.gltf", with_uri("%FF.bin"));
+    assert!(m.contains("do not decode to UTF-8"), "{m}");
+    // A file longer than declared is read up to the declared length; a shorter one is refused.
+    let dir = TempDir::new().unwrap();
+    let mut bytes: Vec<u8> = [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
+        .iter()
+        .flatten()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
+    bytes.extend([0xAB; 1000]);
+    write(&dir, "a triangle.bin", &bytes);
+    let gltf = write(&dir, "scene.gltf", with_uri("a%20triangle.bin"));
+    assert_eq!(TriangleMesh::load(&gltf).unwrap().triangle_count(), 1);
+    write(&dir, "a triangle.bin", &bytes[..20]);
+    let m = TriangleMesh::load(&gltf).unwrap_err().to_string();
+    assert!(
+        m.contains("holds 20 bytes, but the buffer is declared with 36"),
+        "{m}"
+    );
+}
+
+/// A buffer view whose stride is shorter than its accessor's elements is refused (the `gltf`
+/// crate's reader panicked on it).
+#[test]
+fn gltf_strides_shorter_than_an_element_are_errors() {
+    for stride in [4, 8] {
+        let gltf = format!(
+            r#"{{"asset":{{"version":"2.0"}},"meshes":[{{"primitives":[{{"attributes":{{"POSITION":0}}}}]}}],
+            "buffers":[{{"byteLength":36,"uri":"data:application/octet-stream;base64,AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA"}}],
+            "bufferViews":[{{"buffer":0,"byteLength":36,"byteStride":{stride}}}],
+            "accessors":[{{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3","min":[0,0,0],"max":[1,1,0]}}]}}"#
+        );
+        let m = parse_error(MeshFormat::Gltf, "stride.gltf", gltf);
+        assert_eq!(
+            m,
+            format!("stride.gltf: accessor 0: POSITION's buffer view has a byte stride of {stride}, less than its 12-byte elements")
+        );
+    }
+}
+
+/// A byte-order mark before the first statement is skipped: the first vertex is kept.
+#[test]
+fn obj_with_a_byte_order_mark_keeps_its_first_vertex() {
+    let dir = TempDir::new().unwrap();
+    let with_mark = write(&dir, "bom.obj", format!("\u{feff}{TETRA_OBJ}"));
+    let without = write(&dir, "plain.obj", TETRA_OBJ);
+    let (a, b) = (
+        TriangleMesh::load(&with_mark).unwrap(),
+        TriangleMesh::load(&without).unwrap(),
+    );
+    assert_eq!(a.triangle_count(), 4);
+    assert_eq!(a.bounds(), b.bounds());
+    assert_eq!(
+        (0..4).map(|i| a.triangle(i)).collect::<Vec<_>>(),
+        (0..4).map(|i| b.triangle(i)).collect::<Vec<_>>()
+    );
+}

@@ -42,7 +42,7 @@ pub struct BenchArgs {
     pub threads: usize,
     /// Rays per set (the camera set is the first N pixels of a ⌈√N⌉-wide image: 512 × 512 by
     /// default).
-    #[arg(long, default_value_t = 1 << 18)]
+    #[arg(long, default_value_t = 1 << 18, value_parser = ray_count)]
     pub rays: usize,
     /// Timed runs per measurement, after one warm-up run; the median is reported.
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..))]
@@ -288,7 +288,7 @@ fn write_ray_sets(
         if let Some(existing) = sets
             .iter()
             .map(|(set, _)| path(set))
-            .find(|p| std::fs::symlink_metadata(p).is_ok())
+            .find(|p| hbv_cli::atomic_write::in_the_way(p))
         {
             anyhow::bail!(
                 "{}: the output file exists; pass --force to replace it",
@@ -304,6 +304,20 @@ fn write_ray_sets(
         println!("wrote {} ({} rays)", path.display(), rays.len());
     }
     Ok(())
+}
+
+/// The most rays per set `--rays` may ask for: three sets of them take 13 GB.
+const MAX_RAYS: usize = 1 << 27;
+
+/// `--rays N`: at least 1 and at most [`MAX_RAYS`], refused before anything is allocated.
+fn ray_count(arg: &str) -> Result<usize, String> {
+    let n: usize = arg
+        .parse()
+        .map_err(|e| format!("not a number of rays: {e}"))?;
+    if !(1..=MAX_RAYS).contains(&n) {
+        return Err(format!("expected 1 to {MAX_RAYS} rays per set"));
+    }
+    Ok(n)
 }
 
 /// A pool of one thread, and one of `threads` (0: every core) unless that is also one.

@@ -31,7 +31,7 @@ pub struct BuildCommandArgs {
 }
 
 pub fn run(args: &BuildCommandArgs) -> anyhow::Result<()> {
-    if !args.force && args.out.exists() {
+    if !args.force && hbv_cli::atomic_write::in_the_way(&args.out) {
         bail!("{} exists: pass --force to replace it", args.out.display());
     }
     let (mesh, name, load_seconds) = load_mesh(args.mesh.as_deref())?;

@@ -319,8 +319,15 @@ impl Scene {
     }
 }
 
-/// `--threads N` as a rayon pool: 0 means all cores.
+/// The most threads `--threads` may ask for: starting tens of thousands took minutes, for no
+/// gain on any machine this runs on.
+pub const MAX_THREADS: usize = 1024;
+
+/// `--threads N` as a rayon pool: 0 means all cores; more than [`MAX_THREADS`] is an error.
 pub fn thread_pool(threads: usize) -> anyhow::Result<rayon::ThreadPool> {
+    if threads > MAX_THREADS {
+        anyhow::bail!("--threads {threads}: at most {MAX_THREADS} (0 uses every core)");
+    }
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()

@@ -73,7 +73,7 @@ struct Row {
 
 pub fn run(args: &BuildCompareArgs) -> anyhow::Result<()> {
     if let Some(plot) = &args.plot {
-        if !args.force && std::fs::symlink_metadata(plot).is_ok() {
+        if !args.force && hbv_cli::atomic_write::in_the_way(plot) {
             anyhow::bail!(
                 "{}: the output file exists; pass --force to replace it",
                 plot.display()

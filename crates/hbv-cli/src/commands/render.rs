@@ -10,7 +10,7 @@ use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use hbv::grid::{GridConfig, UniformGrid};
 use hbv::Accelerator;
-use hbv_cli::atomic_write::write_atomically;
+use hbv_cli::atomic_write::{in_the_way, write_atomically};
 use hbv_render::image_output::{pass_image, to_exr};
 use hbv_render::{
     render, Frame, Pass, QueryCacheConfig, RayKind, RenderConfig, Scene, SceneTracer,
@@ -123,8 +123,19 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         bail!("--no-work-count cannot make the nodes and triangles heatmaps");
     }
     let outputs = output_files(args, &passes);
+    for (i, (path, _)) in outputs.iter().enumerate() {
+        if outputs[..i]
+            .iter()
+            .any(|(earlier, _)| same_file(earlier, path))
+        {
+            bail!(
+                "{} is named twice among the outputs (the image, its passes and --exr)",
+                path.display()
+            );
+        }
+    }
     if !args.force {
-        if let Some((path, _)) = outputs.iter().find(|(p, _)| p.exists()) {
+        if let Some((path, _)) = outputs.iter().find(|(p, _)| in_the_way(p)) {
             bail!(
                 "{} already exists (use --force to replace it)",
                 path.display()
@@ -249,6 +260,16 @@ fn output_files(args: &RenderArgs, passes: &[Pass]) -> Vec<(PathBuf, Option<Pass
         files.push((exr.clone(), None));
     }
     files
+}
+
+/// Whether two output paths name the same file: equal as written, or the same existing file
+/// (through links or `..`).
+fn same_file(a: &Path, b: &Path) -> bool {
+    a == b
+        || match (std::fs::canonicalize(a), std::fs::canonicalize(b)) {
+            (Ok(a), Ok(b)) => a == b,
+            _ => false,
+        }
 }
 
 /// `dir/name.png` → `dir/name.PASS.png`.

@@ -67,9 +67,9 @@ enum Answers {
 }
 
 pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
-    // Checked first, so that a run that would be refused costs nothing. `symlink_metadata`:
-    // a dangling link is in the way too.
-    if !args.force && std::fs::symlink_metadata(&args.out).is_ok() {
+    // Checked first, so that a run that would be refused costs nothing (a dangling link is in
+    // the way too; a device such as /dev/null is not).
+    if !args.force && hbv_cli::atomic_write::in_the_way(&args.out) {
         anyhow::bail!(
             "{}: the output file exists; pass --force to replace it",
             args.out.display()

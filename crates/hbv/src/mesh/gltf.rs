@@ -136,8 +136,20 @@ fn load_buffers(
                 format!("cannot load {what}: external files are not read when parsing bytes"),
             ));
         }
-        let data = buffer::Data::from_source_and_blob(buffer.source(), folder, &mut blob)
-            .map_err(|e| MeshError::invalid(path, &place, format!("cannot load {what}: {e}")))?;
+        let data = match (buffer.source(), folder) {
+            (buffer::Source::Uri(uri), Some(folder)) if !uri.starts_with("data:") => {
+                read_buffer_file(folder, uri, buffer.length())
+                    .map(buffer::Data)
+                    .map_err(|e| {
+                        MeshError::invalid(path, &place, format!("cannot load {what}: {e}"))
+                    })?
+            }
+            (source, _) => {
+                buffer::Data::from_source_and_blob(source, folder, &mut blob).map_err(|e| {
+                    MeshError::invalid(path, &place, format!("cannot load {what}: {e}"))
+                })?
+            }
+        };
         if data.len() < buffer.length() {
             return Err(MeshError::invalid(
                 path,
@@ -152,6 +164,46 @@ fn load_buffers(
         buffers.push(data);
     }
     Ok(buffers)
+}
+
+/// The first `length` bytes of the file a buffer's URI names: relative to `folder`, or a
+/// `file:` URI, percent-decoded. Only a regular file is read, and only the bytes the buffer
+/// declares (the `gltf` crate's reader reads whatever it is given to its end: `/dev/zero` for
+/// ever, and it panics on a percent-escape that does not decode to UTF-8).
+fn read_buffer_file(folder: &Path, uri: &str, length: usize) -> Result<Vec<u8>, String> {
+    use std::io::Read;
+    let (scheme, rest) = match uri.split_once(':') {
+        Some(("file", rest)) => ("file", rest.strip_prefix("//").unwrap_or(rest)),
+        Some((scheme, _)) => return Err(format!("the URI scheme '{scheme}:' is not supported")),
+        None => ("", uri),
+    };
+    let decoded = urlencoding::decode(rest)
+        .map_err(|_| "its percent-escapes do not decode to UTF-8 text".to_string())?;
+    let file = if scheme == "file" {
+        std::path::PathBuf::from(&*decoded)
+    } else {
+        folder.join(&*decoded)
+    };
+    let opened = std::fs::File::open(&file).map_err(|e| format!("{}: {e}", file.display()))?;
+    let meta = opened
+        .metadata()
+        .map_err(|e| format!("{}: {e}", file.display()))?;
+    if !meta.is_file() {
+        return Err(format!("{} is not a regular file", file.display()));
+    }
+    if meta.len() < length as u64 {
+        return Err(format!(
+            "{} holds {} bytes, but the buffer is declared with {length}",
+            file.display(),
+            meta.len()
+        ));
+    }
+    let mut data = Vec::with_capacity(length);
+    opened
+        .take(length as u64)
+        .read_to_end(&mut data)
+        .map_err(|e| format!("{}: {e}", file.display()))?;
+    Ok(data)
 }
 
 /// The mesh being assembled from the scene.
@@ -235,6 +287,19 @@ impl Flattened<'_> {
                 place,
                 format!("{what} has no buffer view (its data would be all zeros)"),
             ));
+        }
+        if let Some(stride) = accessor.view().and_then(|view| view.stride()) {
+            // The `gltf` crate's reader panics on a stride shorter than an element.
+            if stride < accessor.size() {
+                return Err(MeshError::invalid(
+                    self.path,
+                    place,
+                    format!(
+                        "{what}'s buffer view has a byte stride of {stride}, less than its {}-byte elements",
+                        accessor.size()
+                    ),
+                ));
+            }
         }
         if accessor.count() > self.buffer_bytes || accessor.offset() > self.buffer_bytes {
             return Err(MeshError::invalid(

@@ -26,6 +26,9 @@ use super::{MeshError, TriangleMesh};
 /// vertices, an unparsable number or an index outside the file's vertices is an error naming
 /// the line; a file without faces is an error ("no triangles").
 pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, MeshError> {
+    // A UTF-8 byte-order mark (as some Windows editors write) would hide the first statement:
+    // a first vertex lost, every index after it off by one.
+    let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     let mut reader = GeometryLines::new(bytes);
     // `..Default::default()` covers the fields tobj's optional features add.
     #[allow(clippy::needless_update)]
