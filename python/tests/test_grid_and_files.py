@@ -96,6 +96,36 @@ def test_save_never_overwrites_unless_asked(tmp_path, sphere):
     assert sorted(os.listdir(tmp_path)) == ["tree.hbv"]
     with pytest.raises(OSError, match="no_such_dir"):
         bvh.save(tmp_path / "no_such_dir" / "t.hbv")
+    with pytest.raises(IsADirectoryError, match="it is a directory"):
+        bvh.save(tmp_path, overwrite=True)
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs named pipes")
+def test_save_writes_through_links_and_into_pipes(tmp_path, sphere):
+    """A link is written through (the link stays); a pipe or device is written into, never
+    renamed over (as root, saving to /dev/null put a regular file in its place)."""
+    import stat
+    import threading
+
+    mesh, _, _ = sphere
+    bvh = hbv.BVH(mesh)
+    target = tmp_path / "target.hbv"
+    target.write_bytes(b"old")
+    (tmp_path / "link.hbv").symlink_to("target.hbv")
+    bvh.save(tmp_path / "link.hbv", overwrite=True)
+    assert (tmp_path / "link.hbv").is_symlink()
+    assert hbv.load_bvh(target).stats()["nodes"] == bvh.stats()["nodes"]
+    pipe = tmp_path / "pipe"
+    os.mkfifo(pipe)
+    got = []
+    reader = threading.Thread(target=lambda: got.append(pipe.read_bytes()))
+    reader.start()
+    bvh.save(pipe)
+    reader.join()
+    assert stat.S_ISFIFO(os.stat(pipe).st_mode)
+    saved = tmp_path / "saved.hbv"
+    bvh.save(saved)
+    assert got[0] == saved.read_bytes()
 
 
 def test_loading_bad_files_names_the_file_and_reason(tmp_path, sphere):

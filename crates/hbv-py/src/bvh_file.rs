@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use hbv::bvh::file::{BvhFile, BvhFileProblem};
-use pyo3::exceptions::{PyFileExistsError, PyOSError, PyValueError};
+use pyo3::exceptions::{PyFileExistsError, PyIsADirectoryError, PyOSError, PyValueError};
 use pyo3::prelude::*;
 
 use crate::build_options::{BuildOptions, BUILDERS};
@@ -49,7 +49,36 @@ fn options_from_settings(settings: &str, layout: Option<&str>) -> PyResult<Build
 /// Writes `bytes` to `path` atomically: a temporary file beside it, flushed to disk, then
 /// renamed over `path` (`overwrite`) or hard-linked to it (which fails, atomically, if `path`
 /// exists). On any failure the temporary file is removed and `path` is left as it was.
+///
+/// A link to a file is written through (the file is replaced, the link kept). A device, pipe
+/// or socket is written into in place, with or without `overwrite`: renaming over it would put
+/// a regular file where it was (`/dev/null`, as root).
 fn write_atomically(path: &Path, bytes: &[u8], overwrite: bool) -> PyResult<()> {
+    let linked;
+    let path = match fs::metadata(path) {
+        Ok(meta) if meta.is_dir() => {
+            return Err(PyIsADirectoryError::new_err(format!(
+                "{}: cannot save the tree: it is a directory",
+                path.display()
+            )))
+        }
+        Ok(meta) if !meta.is_file() => {
+            return fs::OpenOptions::new()
+                .write(true)
+                .open(path)
+                .and_then(|mut file| file.write_all(bytes))
+                .map_err(|e| {
+                    PyOSError::new_err(format!("{}: cannot save the tree: {e}", path.display()))
+                });
+        }
+        Ok(_) if fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink()) => {
+            linked = fs::canonicalize(path).map_err(|e| {
+                PyOSError::new_err(format!("{}: cannot save the tree: {e}", path.display()))
+            })?;
+            linked.as_path()
+        }
+        _ => path,
+    };
     if !overwrite && path.exists() {
         return Err(PyFileExistsError::new_err(format!(
             "{}: the file exists; pass overwrite=True to replace it",

@@ -79,6 +79,61 @@ fn a_sliver_just_behind_the_origin_is_not_hit() {
     }
 }
 
+/// A ray lying exactly in the plane of a slanted triangle is parallel to it: no hit, in every
+/// layout. Its edge functions are all exactly 0 and the f64 ones rounding noise, whose signs
+/// could agree: the test then reported a hit at a `t` made of noise (found by a new user's
+/// sweep; a second ray passed 1.6 units beside the triangle and was a hit in the wide8 layout
+/// only, where the vertices' order gave other noise).
+#[test]
+fn rays_in_a_slanted_triangle_s_plane_miss_it() {
+    let cases = [
+        (
+            [
+                Vec3::ZERO,
+                Vec3::new(2.0, 0.0, 1.0),
+                Vec3::new(2.0, 1.0, 1.25),
+            ],
+            Vec3::new(0.9375, -0.4375, 0.359375),
+            Vec3::new(-0.5, 1.75, 0.1875),
+        ),
+        (
+            [
+                Vec3::new(1.0, 1.0, 0.75),
+                Vec3::new(0.0, 2.0, 0.5),
+                Vec3::new(0.0, 1.0, 0.25),
+            ],
+            Vec3::new(2.875, 0.625, 1.59375),
+            Vec3::new(-1.0, 1.5, -0.125),
+        ),
+    ];
+    for (k, (triangle, origin, direction)) in cases.into_iter().enumerate() {
+        let [a, b, c] = triangle.map(|v| v.as_dvec3());
+        let normal = (b - a).cross(c - a);
+        assert_eq!(
+            normal.dot(direction.as_dvec3()),
+            0.0,
+            "case {k}: not parallel"
+        );
+        assert_eq!(
+            normal.dot(origin.as_dvec3() - a),
+            0.0,
+            "case {k}: not in the plane"
+        );
+        let mesh = TriangleMesh::new(triangle.to_vec(), vec![[0, 1, 2]]).unwrap();
+        let tree = BinnedSahBuilder::default().build(&mesh);
+        let ray = Ray::new(origin, direction);
+        for (name, accel) in every_accelerator(&tree, &mesh) {
+            assert_eq!(accel.intersect(&ray), None, "case {k}: {name}");
+            assert!(!accel.occluded(&ray), "case {k}: {name}");
+            assert_eq!(
+                accel.intersect_batch(&[ray]),
+                vec![None],
+                "case {k}: {name}"
+            );
+        }
+    }
+}
+
 /// Brute force and every layout over `tree`, by name.
 fn every_accelerator(
     tree: &hbv::bvh::BuildTree,

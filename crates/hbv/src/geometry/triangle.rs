@@ -249,8 +249,11 @@ impl Triangle {
         }
         let [u, v, w] = exact;
         let det = u + v + w;
-        if det == 0.0 {
-            // The ray is parallel to the triangle's plane.
+        if det == 0.0 || self.parallel_to(ray) {
+            // The ray is parallel to the triangle's plane. (Where it lies in the plane every
+            // edge function is exactly 0, and the f64 ones are rounding noise whose signs may
+            // agree: the exact test, not `det`, says so. Before it, a ray in the plane of a
+            // slanted triangle was a hit at a `t` made of noise.)
             return None;
         }
         let mut t = ((u * sz * a[kz] + v * sz * b[kz] + w * sz * c[kz]) / det) as f32;
@@ -263,6 +266,25 @@ impl Triangle {
 }
 
 impl Triangle {
+    /// Whether the ray's direction is exactly parallel to the triangle's plane:
+    /// `Ng · d = det[p1 − p0, p2 − p0, d] = 0`, by Shewchuk's adaptive `orient3d` on the exact
+    /// f64 edge vectors (an f32 difference is exact in f64), exact in sign.
+    #[inline]
+    fn parallel_to(&self, ray: &PreparedRay) -> bool {
+        let coord = |p: glam::DVec3| robust::Coord3D {
+            x: p.x,
+            y: p.y,
+            z: p.z,
+        };
+        let (p0, p1, p2) = (self.p0.as_dvec3(), self.p1.as_dvec3(), self.p2.as_dvec3());
+        robust::orient3d(
+            coord(p1 - p0),
+            coord(p2 - p0),
+            coord(ray.direction.as_dvec3()),
+            coord(glam::DVec3::ZERO),
+        ) == 0.0
+    }
+
     /// The rounding part of [`Triangle::depth_error`], in ulps of the vertices' coordinates
     /// relative to the origin (scaled by the shear): Woop's `t` rounds by a few of them (the
     /// shear and the depth products); 64 leaves a wide margin.
