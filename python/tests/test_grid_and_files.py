@@ -105,7 +105,8 @@ def test_save_writes_through_links_and_into_pipes(tmp_path, sphere):
     """A link is written through (the link stays); a pipe or device is written into, never
     renamed over (as root, saving to /dev/null put a regular file in its place)."""
     import stat
-    import threading
+    import subprocess
+    import sys
 
     mesh, _, _ = sphere
     bvh = hbv.BVH(mesh)
@@ -117,15 +118,17 @@ def test_save_writes_through_links_and_into_pipes(tmp_path, sphere):
     assert hbv.load_bvh(target).stats()["nodes"] == bvh.stats()["nodes"]
     pipe = tmp_path / "pipe"
     os.mkfifo(pipe)
-    got = []
-    reader = threading.Thread(target=lambda: got.append(pipe.read_bytes()))
-    reader.start()
+    # The reader is another process: save() must not wait on this interpreter.
+    reader = subprocess.Popen(
+        [sys.executable, "-c", "import sys; sys.stdout.buffer.write(open(sys.argv[1], 'rb').read())", str(pipe)],
+        stdout=subprocess.PIPE,
+    )
     bvh.save(pipe)
-    reader.join()
+    got, _ = reader.communicate(timeout=60)
     assert stat.S_ISFIFO(os.stat(pipe).st_mode)
     saved = tmp_path / "saved.hbv"
     bvh.save(saved)
-    assert got[0] == saved.read_bytes()
+    assert got == saved.read_bytes()
 
 
 def test_loading_bad_files_names_the_file_and_reason(tmp_path, sphere):

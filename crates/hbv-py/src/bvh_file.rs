@@ -136,8 +136,8 @@ fn write_atomically(path: &Path, bytes: &[u8], overwrite: bool) -> PyResult<()> 
 /// Saves `bvh` (its mesh, tree and settings) to `path`.
 pub fn save(py: Python<'_>, bvh: &PyBvh, path: PathBuf, overwrite: bool) -> PyResult<()> {
     let file = bvh.to_file();
-    let bytes = py.detach(|| file.to_bytes());
-    write_atomically(&path, &bytes, overwrite)
+    // Without the GIL: writing may block (a pipe waiting for its reader, a slow disk).
+    py.detach(|| write_atomically(&path, &file.to_bytes(), overwrite))
 }
 
 /// Loads a BVH saved by `BVH.save` or `hbv build` (a `.hbv` file: mesh, tree and settings),
