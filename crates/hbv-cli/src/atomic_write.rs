@@ -5,9 +5,37 @@ use std::fs::{self, File, OpenOptions};
 use std::io;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
 
 /// Tells apart the temporary files of concurrent writers in one process.
 static COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// The temporary files being written now, for [`remove_temporaries`].
+static IN_PROGRESS: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Removes the temporary files of every write still in progress: for the handler of an
+/// interrupt (Ctrl-C, SIGTERM), which then ends the process. The outputs themselves are left
+/// as they were: a write is either renamed into place whole, or not at all.
+pub fn remove_temporaries() {
+    let in_progress = IN_PROGRESS
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    for path in in_progress.iter() {
+        let _ = fs::remove_file(path);
+    }
+}
+
+/// Adds (`true`) or forgets a temporary file of [`IN_PROGRESS`].
+fn track(path: &Path, writing: bool) {
+    let mut in_progress = IN_PROGRESS
+        .lock()
+        .unwrap_or_else(|poisoned| poisoned.into_inner());
+    if writing {
+        in_progress.push(path.to_path_buf());
+    } else {
+        in_progress.retain(|p| p != path);
+    }
+}
 
 /// Writes a file at `path` through `write`, atomically.
 ///
@@ -97,6 +125,7 @@ pub fn write_atomically(
             &format!("cannot create a temporary file in {}", dir.display()),
         )
     })?;
+    track(&tmp_path, true);
     let result = write(&mut file)
         .and_then(|()| file.sync_all())
         .map_err(|e| fail(e, "writing failed"))
@@ -105,6 +134,10 @@ pub fn write_atomically(
             fs::rename(&tmp_path, path)
                 .map_err(|e| fail(e, &format!("cannot rename {} over it", tmp_path.display())))
         });
+    if result.is_err() {
+        let _ = fs::remove_file(&tmp_path);
+    }
+    track(&tmp_path, false);
     match result {
         Ok(()) => {
             // Make the rename itself durable; not every platform can open a directory for this.
@@ -113,10 +146,7 @@ pub fn write_atomically(
             }
             Ok(())
         }
-        Err(e) => {
-            let _ = fs::remove_file(&tmp_path);
-            Err(e)
-        }
+        Err(e) => Err(e),
     }
 }
 

@@ -55,6 +55,13 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    // Interrupted (Ctrl-C, SIGTERM) while writing an output: its temporary file goes too. The
+    // output itself is whole or untouched either way (written atomically).
+    let _ = ctrlc::set_handler(|| {
+        hbv_cli::atomic_write::remove_temporaries();
+        eprintln!("hbv: interrupted");
+        std::process::exit(130);
+    });
     // A bug must still end in one clear line, not a backtrace dump.
     std::panic::set_hook(Box::new(|info| {
         let location = info
