@@ -2,7 +2,7 @@
 
 use std::ffi::OsString;
 use std::fs::{self, File, OpenOptions};
-use std::io;
+use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
@@ -56,6 +56,73 @@ pub fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut File) -> io::Result<()>,
 ) -> io::Result<()> {
+    stage(path, write)?.commit()
+}
+
+/// Writes several files, each as [`write_atomically`] does, all or none: every file is written
+/// to its temporary file and flushed first, and only then are they renamed into place. If any
+/// write fails, no output is touched (a rename itself failing after others succeeded, on a
+/// working file system, is the one case left).
+pub fn write_all_atomically(files: &[(&Path, &[u8])]) -> io::Result<()> {
+    let staged = files
+        .iter()
+        .map(|(path, bytes)| stage(path, |f| f.write_all(bytes)))
+        .collect::<io::Result<Vec<Staged>>>()?;
+    staged.into_iter().try_for_each(Staged::commit)
+}
+
+/// A file written to its temporary file and flushed, to be renamed into place by
+/// [`Staged::commit`]; dropped uncommitted, the temporary file is removed.
+#[must_use]
+pub struct Staged {
+    path: PathBuf,
+    dir: PathBuf,
+    /// `None` for a device, pipe or socket, written in place already.
+    tmp: Option<PathBuf>,
+}
+
+impl Staged {
+    /// Renames the temporary file over the path (and makes the rename durable where the
+    /// platform can); on failure the temporary file is removed.
+    pub fn commit(mut self) -> io::Result<()> {
+        let Some(tmp) = self.tmp.take() else {
+            return Ok(());
+        };
+        let renamed = fs::rename(&tmp, &self.path).map_err(|e| {
+            io::Error::new(
+                e.kind(),
+                format!(
+                    "cannot write {}: cannot rename {} over it: {e}",
+                    self.path.display(),
+                    tmp.display()
+                ),
+            )
+        });
+        if renamed.is_err() {
+            let _ = fs::remove_file(&tmp);
+        }
+        track(&tmp, false);
+        renamed?;
+        // Make the rename itself durable; not every platform can open a directory for this.
+        if let Ok(d) = File::open(&self.dir) {
+            let _ = d.sync_all();
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Staged {
+    fn drop(&mut self) {
+        if let Some(tmp) = self.tmp.take() {
+            let _ = fs::remove_file(&tmp);
+            track(&tmp, false);
+        }
+    }
+}
+
+/// [`write_atomically`] up to the rename: the file written to its temporary file and flushed
+/// (or, for a device, pipe or socket, written in place).
+fn stage(path: &Path, write: impl FnOnce(&mut File) -> io::Result<()>) -> io::Result<Staged> {
     let path = &through_links(path);
     let fail = |e: io::Error, what: &str| {
         io::Error::new(
@@ -75,7 +142,12 @@ pub fn write_atomically(
                 .write(true)
                 .open(path)
                 .map_err(|e| fail(e, "cannot open it"))?;
-            return write(&mut file).map_err(|e| fail(e, "writing failed"));
+            write(&mut file).map_err(|e| fail(e, "writing failed"))?;
+            return Ok(Staged {
+                path: path.clone(),
+                dir: PathBuf::new(),
+                tmp: None,
+            });
         }
         _ => {}
     }
@@ -126,28 +198,16 @@ pub fn write_atomically(
         )
     })?;
     track(&tmp_path, true);
-    let result = write(&mut file)
+    // From here the staged file removes its temporary file if it is dropped uncommitted.
+    let staged = Staged {
+        path: path.clone(),
+        dir: dir.to_path_buf(),
+        tmp: Some(tmp_path),
+    };
+    write(&mut file)
         .and_then(|()| file.sync_all())
-        .map_err(|e| fail(e, "writing failed"))
-        .and_then(|()| {
-            drop(file);
-            fs::rename(&tmp_path, path)
-                .map_err(|e| fail(e, &format!("cannot rename {} over it", tmp_path.display())))
-        });
-    if result.is_err() {
-        let _ = fs::remove_file(&tmp_path);
-    }
-    track(&tmp_path, false);
-    match result {
-        Ok(()) => {
-            // Make the rename itself durable; not every platform can open a directory for this.
-            if let Ok(d) = File::open(dir) {
-                let _ = d.sync_all();
-            }
-            Ok(())
-        }
-        Err(e) => Err(e),
-    }
+        .map_err(|e| fail(e, "writing failed"))?;
+    Ok(staged)
 }
 
 /// Whether writing `path` would replace something the user has, and so needs `--force`: a

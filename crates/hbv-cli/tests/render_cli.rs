@@ -128,3 +128,37 @@ fn an_image_too_large_for_memory_is_refused_before_rendering() {
     assert!(err.contains("too large"), "{err}");
     assert!(!dir.path().join("render.png").exists());
 }
+
+/// The outputs are written all or none: an EXR into a missing folder leaves no PNG behind,
+/// and one file named twice is refused before rendering.
+#[test]
+fn outputs_are_written_all_or_none() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut args = vec!["render"];
+    args.extend(SMALL);
+    args.extend(["--pass", "depth", "--exr", "no/such/out.exr"]);
+    let o = hbv_in(dir.path(), &args);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("no/such/out.exr") && stderr.contains("does not exist"),
+        "{stderr}"
+    );
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "left behind"
+    );
+
+    let mut args = vec!["render"];
+    args.extend(SMALL);
+    args.extend(["-o", "same.png", "--exr", "same.png"]);
+    let o = hbv_in(dir.path(), &args);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("same.png is named twice among the outputs"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}

@@ -1,7 +1,6 @@
 //! `hbv render`: a scene (or the built-in Cornell box) to PNG and OpenEXR images, with extra
 //! passes and cost heatmaps, and a report of the rays cast by kind.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use std::time::Instant;
@@ -10,7 +9,7 @@ use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
 use hbv::grid::{GridConfig, UniformGrid};
 use hbv::Accelerator;
-use hbv_cli::atomic_write::{in_the_way, write_atomically};
+use hbv_cli::atomic_write::{in_the_way, write_all_atomically};
 use hbv_render::image_output::{pass_image, to_exr};
 use hbv_render::{
     render, Frame, Pass, QueryCacheConfig, RayKind, RenderConfig, Scene, SceneTracer,
@@ -221,13 +220,20 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     };
     let frame = pool.install(|| render(&scene, &tracer, &config));
 
-    for (path, pass) in &outputs {
-        let bytes = match pass {
-            Some(pass) => pass_image(&frame.film, *pass).to_png()?,
-            None => to_exr(&frame.film)?,
-        };
-        write_atomically(path, |f| f.write_all(&bytes))?;
-    }
+    // Every image encoded first, then all written or none: a failing last output (a missing
+    // folder, a full disk) no longer leaves the first ones behind.
+    let encoded = outputs
+        .iter()
+        .map(|(path, pass)| {
+            let bytes = match pass {
+                Some(pass) => pass_image(&frame.film, *pass).to_png()?,
+                None => to_exr(&frame.film)?,
+            };
+            Ok((path.as_path(), bytes))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let files: Vec<(&Path, &[u8])> = encoded.iter().map(|(p, b)| (*p, b.as_slice())).collect();
+    write_all_atomically(&files)?;
 
     let report = Report {
         scene_name: &scene_name,
