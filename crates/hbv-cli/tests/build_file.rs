@@ -135,6 +135,17 @@ fn a_damaged_tree_file_is_one_clear_line() {
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.starts_with("hbv: error: cannot load tree: "), "{err}");
     assert!(err.contains("cut.hbv: the file is truncated"), "{err}");
+    // An empty or foreign file named .hbv is not mistaken for a mesh of unknown format.
+    for (name, bytes) in [("empty.hbv", &b""[..]), ("text.hbv", &b"v 0 0 0\n"[..])] {
+        let path = dir.path().join(name);
+        std::fs::write(&path, bytes).unwrap();
+        let err = stderr(&hbv(&["info", p(&path)]));
+        assert_eq!(err.lines().count(), 1, "{err}");
+        assert!(
+            err.contains(&format!("{name}: not an hbv BVH file")),
+            "{err}"
+        );
+    }
 }
 
 #[test]

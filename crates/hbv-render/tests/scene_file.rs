@@ -134,6 +134,30 @@ fn unknown_keys_and_wrong_types_name_line_and_key() {
     );
 }
 
+/// A 3-vector takes exactly three numbers (a fourth passed unnoticed before), a scale one
+/// number or three.
+#[test]
+fn vectors_of_the_wrong_length_name_line_and_key() {
+    assert_error(
+        &good_with("position = [0.5, 0.5, 3]", "position = [0.5, 0.5, 3, 1]"),
+        "position = [0.5, 0.5, 3, 1]",
+        "camera.position",
+        "invalid length 4, expected 3 numbers",
+    );
+    assert_error(
+        &good_with("color = [0.8, 0.1, 0.1]", "color = [0.8, 0.1]"),
+        "color = [0.8, 0.1]",
+        "materials.red.color",
+        "invalid length 2, expected 3 numbers",
+    );
+    assert_error(
+        &good_with("scale = [1, 2, 1]", "scale = [1, 2, 1, 1]"),
+        "scale = [1, 2, 1, 1]",
+        "mesh[1].scale",
+        "invalid length 4, expected a number or 3 numbers",
+    );
+}
+
 #[test]
 fn bad_values_name_line_and_key() {
     assert_error(

@@ -256,7 +256,11 @@ pub struct SavedTree {
 pub fn load_scene(path: Option<&Path>) -> anyhow::Result<Scene> {
     let start = Instant::now();
     let (mesh, saved, name) = match path {
-        Some(p) if is_bvh_file(p) => {
+        // By its magic number, or its name: a damaged or foreign `.hbv` file is then told apart
+        // as "not an hbv BVH file", not an unsupported mesh format.
+        Some(p)
+            if is_bvh_file(p) || p.extension().is_some_and(|e| e.eq_ignore_ascii_case("hbv")) =>
+        {
             let file = BvhFile::load(p).context("cannot load tree")?;
             let saved = SavedTree {
                 tree: file.tree,

@@ -25,7 +25,21 @@ const MAX_SPP: i64 = 1 << 16;
 const MAX_LIGHT_SAMPLES: i64 = 1 << 12;
 const MAX_DEPTH: i64 = 64;
 
-type V3 = Spanned<[f32; 3]>;
+type V3 = Spanned<Triple>;
+
+/// Three numbers, exactly (serde's `[f32; 3]` stops reading after three and lets a fourth pass
+/// unnoticed).
+#[derive(Clone, Copy)]
+struct Triple([f32; 3]);
+
+impl<'de> Deserialize<'de> for Triple {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        let numbers = Vec::<f32>::deserialize(deserializer)?;
+        <[f32; 3]>::try_from(numbers.as_slice())
+            .map(Triple)
+            .map_err(|_| serde::de::Error::invalid_length(numbers.len(), &"3 numbers"))
+    }
+}
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -85,11 +99,44 @@ struct MeshEntry {
     smooth: Option<bool>,
 }
 
-#[derive(Deserialize)]
-#[serde(untagged)]
+/// `scale = k` or `scale = [x, y, z]`.
 enum Scale {
     Uniform(f32),
-    PerAxis([f32; 3]),
+    PerAxis(Triple),
+}
+
+impl<'de> Deserialize<'de> for Scale {
+    fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct Numbers;
+        impl<'de> serde::de::Visitor<'de> for Numbers {
+            type Value = Scale;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a number or 3 numbers")
+            }
+            fn visit_f64<E>(self, k: f64) -> Result<Scale, E> {
+                Ok(Scale::Uniform(k as f32))
+            }
+            fn visit_i64<E>(self, k: i64) -> Result<Scale, E> {
+                Ok(Scale::Uniform(k as f32))
+            }
+            fn visit_u64<E>(self, k: u64) -> Result<Scale, E> {
+                Ok(Scale::Uniform(k as f32))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<Scale, A::Error> {
+                let mut numbers = Vec::new();
+                while let Some(x) = seq.next_element::<f32>()? {
+                    numbers.push(x);
+                }
+                <[f32; 3]>::try_from(numbers.as_slice())
+                    .map(|a| Scale::PerAxis(Triple(a)))
+                    .map_err(|_| serde::de::Error::invalid_length(numbers.len(), &self))
+            }
+        }
+        deserializer.deserialize_any(Numbers)
+    }
 }
 
 #[derive(Deserialize)]
@@ -549,7 +596,7 @@ impl Context<'_> {
         if let Some(s) = &e.scale {
             let scale = match s.get_ref() {
                 Scale::Uniform(k) => Vec3::splat(*k),
-                Scale::PerAxis(v) => Vec3::from(*v),
+                Scale::PerAxis(v) => Vec3::from(v.0),
             };
             if !(scale.is_finite()
                 && scale.min_element().abs() > 0.0
@@ -567,7 +614,7 @@ impl Context<'_> {
     }
 
     fn point(&self, v: &V3, key: &str) -> Result<Vec3, SceneError> {
-        let p = Vec3::from(*v.get_ref());
+        let p = Vec3::from(v.get_ref().0);
         if p.is_finite() {
             Ok(p)
         } else {
@@ -576,7 +623,7 @@ impl Context<'_> {
     }
 
     fn colour(&self, v: &V3, key: &str) -> Result<Vec3, SceneError> {
-        let c = Vec3::from(*v.get_ref());
+        let c = Vec3::from(v.get_ref().0);
         if c.is_finite() && c.min_element() >= 0.0 {
             Ok(c)
         } else {
