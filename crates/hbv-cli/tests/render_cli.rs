@@ -74,6 +74,8 @@ fn a_bad_scene_is_one_line_naming_file_line_and_key() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(err.lines().count(), 1, "{err}");
     assert!(err.contains("bad.toml: line 7: mesh[0].file"), "{err}");
+    // The mesh loader's reason once (the error chain repeated it).
+    assert_eq!(err.matches("nothing.obj: cannot read").count(), 1, "{err}");
     assert!(!dir.path().join("x.png").exists());
 }
 

@@ -11,7 +11,8 @@ pub enum SceneError {
     #[error("{}: cannot read: {error}", file.display())]
     Io {
         file: PathBuf,
-        #[source]
+        // Not a `#[source]`: the message holds it already, and a report of the error chain
+        // (`{:#}`) printed it twice.
         error: std::io::Error,
     },
     #[error("{}: line {line}: {key}: {reason}", file.display())]
@@ -33,7 +34,7 @@ pub enum SceneError {
         file: PathBuf,
         line: usize,
         key: String,
-        #[source]
+        // In the message, not a `#[source]` (as `Io`).
         error: Box<MeshError>,
     },
 }
