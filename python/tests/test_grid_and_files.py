@@ -94,8 +94,10 @@ def test_save_never_overwrites_unless_asked(tmp_path, sphere):
     bvh.save(path, overwrite=True)
     assert hbv.load_bvh(path).stats()["nodes"] == bvh.stats()["nodes"]
     assert sorted(os.listdir(tmp_path)) == ["tree.hbv"]
-    with pytest.raises(OSError, match="no_such_dir"):
+    with pytest.raises(FileNotFoundError, match="directory .*no_such_dir does not exist"):
         bvh.save(tmp_path / "no_such_dir" / "t.hbv")
+    with pytest.raises(NotADirectoryError, match="tree.hbv is not a directory"):
+        bvh.save(path / "t.hbv")
     with pytest.raises(IsADirectoryError, match="it is a directory"):
         bvh.save(tmp_path, overwrite=True)
 

@@ -7,7 +7,10 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use hbv::bvh::file::{BvhFile, BvhFileProblem};
-use pyo3::exceptions::{PyFileExistsError, PyIsADirectoryError, PyOSError, PyValueError};
+use pyo3::exceptions::{
+    PyFileExistsError, PyFileNotFoundError, PyIsADirectoryError, PyNotADirectoryError, PyOSError,
+    PyValueError,
+};
 use pyo3::prelude::*;
 
 use crate::build_options::{BuildOptions, BUILDERS};
@@ -79,6 +82,25 @@ fn write_atomically(path: &Path, bytes: &[u8], overwrite: bool) -> PyResult<()> 
         }
         _ => path,
     };
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(if dir.exists() {
+            PyNotADirectoryError::new_err(format!(
+                "{}: cannot save the tree: {} is not a directory",
+                path.display(),
+                dir.display()
+            ))
+        } else {
+            PyFileNotFoundError::new_err(format!(
+                "{}: cannot save the tree: directory {} does not exist",
+                path.display(),
+                dir.display()
+            ))
+        });
+    }
     if !overwrite && path.exists() {
         return Err(PyFileExistsError::new_err(format!(
             "{}: the file exists; pass overwrite=True to replace it",
