@@ -756,3 +756,15 @@ fn obj_with_a_byte_order_mark_keeps_its_first_vertex() {
         (0..4).map(|i| b.triangle(i)).collect::<Vec<_>>()
     );
 }
+
+/// A face vertex without a position index (`f 1 / 2 3`) is named with its line (tobj reads it
+/// as index 0, and the error said only that some index was out of range).
+#[test]
+fn obj_face_vertex_without_an_index_names_its_line() {
+    let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 2 3\nf 1 / 2 3\nf 1 2 4\n";
+    let m = load_error("slash.obj", obj);
+    assert!(
+        m.ends_with("slash.obj: line 6: cannot parse face vertex \"/\" (vertices are written i, i/t, i//n or i/t/n)"),
+        "{m}"
+    );
+}

@@ -173,29 +173,46 @@ fn locate_bad_index(path: &Path, bytes: &[u8]) -> Option<MeshError> {
         match keyword(line.as_bytes()) {
             b"v" => seen += 1,
             b"f" => {
-                for vertex in line.split_whitespace().skip(1) {
-                    let Some(Ok(index)) = vertex.split('/').next().map(str::parse::<i64>) else {
-                        continue;
-                    };
-                    let reason = if index == 0 {
-                        "vertex index 0 is invalid (OBJ indices start at 1)".to_string()
-                    } else if index < 0 && index.unsigned_abs() > seen as u64 {
-                        format!(
-                            "relative vertex index {index} points before the first vertex \
-                             ({seen} vertices precede this face)"
-                        )
-                    } else if index > 0 && index as u64 > total as u64 {
-                        format!("vertex index {index} out of range (the file has {total} vertices)")
+                let words = line.split_whitespace().skip(1);
+                for vertex in words.take_while(|w| !w.starts_with('#')) {
+                    let parsed = vertex.split('/').next().map(str::parse::<i64>);
+                    let reason = if let Some(Ok(index)) = parsed {
+                        index_problem(index, seen, total)
                     } else {
-                        continue;
+                        // tobj reads a vertex without a position index (`f 1 / 2`) as index 0.
+                        Some(format!(
+                            "cannot parse face vertex \"{vertex}\" (vertices are written \
+                             i, i/t, i//n or i/t/n)"
+                        ))
                     };
-                    return Some(MeshError::invalid(path, format!("line {}", i + 1), reason));
+                    if let Some(reason) = reason {
+                        return Some(MeshError::invalid(path, format!("line {}", i + 1), reason));
+                    }
                 }
             }
             _ => {}
         }
     }
     None
+}
+
+/// What is wrong with face vertex index `index` (1-based, or negative: relative), if anything,
+/// with `seen` vertices before its face and `total` in the file.
+fn index_problem(index: i64, seen: usize, total: usize) -> Option<String> {
+    if index == 0 {
+        Some("vertex index 0 is invalid (OBJ indices start at 1)".to_string())
+    } else if index < 0 && index.unsigned_abs() > seen as u64 {
+        Some(format!(
+            "relative vertex index {index} points before the first vertex \
+             ({seen} vertices precede this face)"
+        ))
+    } else if index > 0 && index as u64 > total as u64 {
+        Some(format!(
+            "vertex index {index} out of range (the file has {total} vertices)"
+        ))
+    } else {
+        None
+    }
 }
 
 /// Scans the file for the first `v` line whose position is not finite (as tobj computes it:
