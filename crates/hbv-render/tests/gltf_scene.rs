@@ -125,3 +125,33 @@ fn a_broken_gltf_names_the_file() {
     let e = load_scene(&path).unwrap_err();
     assert!(e.to_string().contains("broken.glb"), "{e}");
 }
+
+/// A glTF scene is read with the mesh loader's checks: a buffer naming a device is refused (it
+/// was read for ever), and so is a stride shorter than an element (the `gltf` crate panicked).
+#[test]
+fn a_gltf_scene_gets_the_mesh_loader_s_checks() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = quad_gltf();
+    let stride = good.replace(
+        r#""byteOffset": 0, "byteLength": 48}"#,
+        r#""byteOffset": 0, "byteLength": 48, "byteStride": 8}"#,
+    );
+    assert_ne!(stride, good);
+    let path = dir.path().join("stride.gltf");
+    std::fs::write(&path, stride).unwrap();
+    let e = load_scene(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("stride.gltf: accessor 0: POSITION's buffer view has a byte stride of 8"),
+        "{e}"
+    );
+    #[cfg(unix)]
+    {
+        let start = good.find("data:application").unwrap();
+        let end = start + good[start..].find('"').unwrap();
+        let device = format!("{}/dev/zero{}", &good[..start], &good[end..]);
+        let path = dir.path().join("device.gltf");
+        std::fs::write(&path, device).unwrap();
+        let e = load_scene(&path).unwrap_err().to_string();
+        assert!(e.contains("/dev/zero is not a regular file"), "{e}");
+    }
+}

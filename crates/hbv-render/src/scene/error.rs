@@ -29,6 +29,10 @@ pub enum SceneError {
         place: String,
         reason: String,
     },
+    /// A glTF scene file the mesh loader's checks refused (its message names the file and the
+    /// place).
+    #[error("{0}")]
+    GltfFile(Box<MeshError>),
     #[error("{}: line {line}: {key}: cannot load mesh: {error}", file.display())]
     Mesh {
         file: PathBuf,
@@ -43,7 +47,7 @@ impl SceneError {
     /// The line the error is on, for errors about the file's content.
     pub fn line(&self) -> Option<usize> {
         match self {
-            SceneError::Io { .. } | SceneError::Gltf { .. } => None,
+            SceneError::Io { .. } | SceneError::Gltf { .. } | SceneError::GltfFile(_) => None,
             SceneError::Invalid { line, .. } | SceneError::Mesh { line, .. } => Some(*line),
         }
     }
@@ -51,7 +55,7 @@ impl SceneError {
     /// The key the error is about, for errors about the file's content.
     pub fn key(&self) -> Option<&str> {
         match self {
-            SceneError::Io { .. } | SceneError::Gltf { .. } => None,
+            SceneError::Io { .. } | SceneError::Gltf { .. } | SceneError::GltfFile(_) => None,
             SceneError::Invalid { key, .. } | SceneError::Mesh { key, .. } => Some(key),
         }
     }

@@ -27,8 +27,10 @@ pub fn load_gltf_scene(path: &Path) -> Result<Scene, SceneError> {
         place: place.to_string(),
         reason,
     };
-    let (document, buffers, _images) =
-        gltf::import(path).map_err(|e| error("file", e.to_string()))?;
+    // Read and checked as hbv's mesh loader reads a glTF mesh (`gltf::import` read a buffer URI
+    // of /dev/zero for ever, and its accessor reader panicked on short strides).
+    let (document, buffers) =
+        hbv::mesh::read_gltf(path).map_err(|e| SceneError::GltfFile(Box::new(e)))?;
     let gltf_scene = document
         .default_scene()
         .or_else(|| document.scenes().next())

@@ -30,16 +30,7 @@ pub(super) fn parse(
     bytes: &[u8],
     folder: Option<&Path>,
 ) -> Result<TriangleMesh, MeshError> {
-    let not_gltf =
-        |e: gltf::Error| MeshError::invalid(path, "file", format!("not valid glTF: {e}"));
-    check_glb_length(path, bytes)?;
-    // Validation happens in two steps because the `gltf` crate's validator (gltf-json 1.4.1,
-    // `primitive_validate_hook`) indexes the accessor list with a primitive's POSITION index
-    // before checking it: a file naming a missing accessor would panic (found by fuzzing).
-    let Gltf { document, blob } = Gltf::from_slice_without_validation(bytes).map_err(not_gltf)?;
-    check_position_accessors(path, document.as_json())?;
-    let document = Document::from_json(document.into_json()).map_err(not_gltf)?;
-    let buffers = load_buffers(path, folder, &document, blob)?;
+    let (document, buffers) = document_and_buffers(path, bytes, folder)?;
 
     let mut out = Flattened {
         path,
@@ -68,6 +59,52 @@ pub(super) fn parse(
         ));
     }
     TriangleMesh::from_parts(path.into(), out.positions, out.triangles)
+}
+
+/// The document and its buffers, read as [`parse`] reads them.
+fn document_and_buffers(
+    path: &Path,
+    bytes: &[u8],
+    folder: Option<&Path>,
+) -> Result<(Document, Vec<buffer::Data>), MeshError> {
+    let not_gltf =
+        |e: gltf::Error| MeshError::invalid(path, "file", format!("not valid glTF: {e}"));
+    check_glb_length(path, bytes)?;
+    // Validation happens in two steps because the `gltf` crate's validator (gltf-json 1.4.1,
+    // `primitive_validate_hook`) indexes the accessor list with a primitive's POSITION index
+    // before checking it: a file naming a missing accessor would panic (found by fuzzing).
+    let Gltf { document, blob } = Gltf::from_slice_without_validation(bytes).map_err(not_gltf)?;
+    check_position_accessors(path, document.as_json())?;
+    let document = Document::from_json(document.into_json()).map_err(not_gltf)?;
+    let buffers = load_buffers(path, folder, &document, blob)?;
+    Ok((document, buffers))
+}
+
+/// A glTF file's document and buffers, read and checked as [`TriangleMesh::load`] reads them,
+/// for a caller that walks the document itself (the renderer's glTF scenes): devices refused,
+/// buffers read from regular files only and only their declared bytes, and every accessor of
+/// every mesh primitive (POSITION and indices) checked ([`check_accessor`]), so that the
+/// `gltf` crate's reader can be trusted with them.
+pub(super) fn read_checked(path: &Path) -> Result<(Document, Vec<buffer::Data>), MeshError> {
+    super::refuse_devices(path).map_err(|e| MeshError::io(path, e))?;
+    let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
+    let folder = match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    };
+    let (document, buffers) = document_and_buffers(path, &bytes, Some(folder))?;
+    let buffer_bytes = buffers.iter().map(|b| b.len()).sum();
+    for mesh in document.meshes() {
+        for primitive in mesh.primitives() {
+            if let Some(positions) = primitive.get(&Semantic::Positions) {
+                check_accessor(path, buffer_bytes, &positions, "POSITION")?;
+            }
+            if let Some(indices) = primitive.indices() {
+                check_accessor(path, buffer_bytes, &indices, "indices")?;
+            }
+        }
+    }
+    Ok((document, buffers))
 }
 
 /// A GLB must declare a total length of at least its 12-byte header (the `gltf` crate
@@ -267,53 +304,9 @@ impl Flattened<'_> {
         Ok(())
     }
 
-    /// Refuses accessors the `gltf` crate's reader cannot be trusted with: sparse ones (its
-    /// sparse reader computes `count - 1` unchecked, unwraps the values, and fills an accessor
-    /// without a buffer view with `count` zeros, however large `count` is), and any declaring
-    /// more elements, or a larger byte offset, than all buffers have bytes (its reader computes
-    /// `offset + stride * (count - 1)` unchecked).
+    /// [`check_accessor`] against this file's buffers.
     fn check_accessor(&self, accessor: &gltf::Accessor<'_>, what: &str) -> Result<(), MeshError> {
-        let place = format!("accessor {}", accessor.index());
-        if accessor.sparse().is_some() {
-            return Err(MeshError::invalid(
-                self.path,
-                place,
-                format!("{what} is a sparse accessor; sparse accessors are not supported"),
-            ));
-        }
-        if accessor.view().is_none() && accessor.count() > 0 {
-            return Err(MeshError::invalid(
-                self.path,
-                place,
-                format!("{what} has no buffer view (its data would be all zeros)"),
-            ));
-        }
-        if let Some(stride) = accessor.view().and_then(|view| view.stride()) {
-            // The `gltf` crate's reader panics on a stride shorter than an element.
-            if stride < accessor.size() {
-                return Err(MeshError::invalid(
-                    self.path,
-                    place,
-                    format!(
-                        "{what}'s buffer view has a byte stride of {stride}, less than its {}-byte elements",
-                        accessor.size()
-                    ),
-                ));
-            }
-        }
-        if accessor.count() > self.buffer_bytes || accessor.offset() > self.buffer_bytes {
-            return Err(MeshError::invalid(
-                self.path,
-                place,
-                format!(
-                    "{what} declares {} elements at offset {}, more than the {} bytes of buffers hold",
-                    accessor.count(),
-                    accessor.offset(),
-                    self.buffer_bytes
-                ),
-            ));
-        }
-        Ok(())
+        check_accessor(self.path, self.buffer_bytes, accessor, what)
     }
 
     /// Appends the triangle primitives of `mesh`, in order, transformed by `world`.
@@ -427,4 +420,59 @@ impl Flattened<'_> {
         }
         Ok(())
     }
+}
+
+/// Refuses accessors the `gltf` crate's reader cannot be trusted with: sparse ones (its sparse
+/// reader computes `count - 1` unchecked, unwraps the values, and fills an accessor without a
+/// buffer view with `count` zeros, however large `count` is), strides shorter than an element
+/// (its reader panics), and any declaring more elements, or a larger byte offset, than all
+/// buffers (`buffer_bytes`) have bytes (its reader computes `offset + stride * (count - 1)`
+/// unchecked).
+fn check_accessor(
+    path: &Path,
+    buffer_bytes: usize,
+    accessor: &gltf::Accessor<'_>,
+    what: &str,
+) -> Result<(), MeshError> {
+    let place = format!("accessor {}", accessor.index());
+    if accessor.sparse().is_some() {
+        return Err(MeshError::invalid(
+            path,
+            place,
+            format!("{what} is a sparse accessor; sparse accessors are not supported"),
+        ));
+    }
+    if accessor.view().is_none() && accessor.count() > 0 {
+        return Err(MeshError::invalid(
+            path,
+            place,
+            format!("{what} has no buffer view (its data would be all zeros)"),
+        ));
+    }
+    if let Some(stride) = accessor.view().and_then(|view| view.stride()) {
+        // The `gltf` crate's reader panics on a stride shorter than an element.
+        if stride < accessor.size() {
+            return Err(MeshError::invalid(
+                path,
+                place,
+                format!(
+                    "{what}'s buffer view has a byte stride of {stride}, less than its {}-byte elements",
+                    accessor.size()
+                ),
+            ));
+        }
+    }
+    if accessor.count() > buffer_bytes || accessor.offset() > buffer_bytes {
+        return Err(MeshError::invalid(
+            path,
+            place,
+            format!(
+                "{what} declares {} elements at offset {}, more than the {} bytes of buffers hold",
+                accessor.count(),
+                accessor.offset(),
+                buffer_bytes
+            ),
+        ));
+    }
+    Ok(())
 }

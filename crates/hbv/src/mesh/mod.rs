@@ -154,6 +154,16 @@ impl TriangleMesh {
     }
 }
 
+/// A glTF file's document and buffers, read and checked as [`TriangleMesh::load`] reads a
+/// glTF mesh (devices refused, buffers from regular files only and only their declared bytes,
+/// every mesh primitive's POSITION and indices accessors checked so that the `gltf` crate's
+/// reader can be trusted with them), for callers that walk the scene themselves: the renderer's
+/// glTF scenes (materials, cameras, lights). `gltf::import` reads a buffer URI naming
+/// `/dev/zero` for ever and panics on some malformed files.
+pub fn read_gltf(path: &Path) -> Result<(::gltf::Document, Vec<::gltf::buffer::Data>), MeshError> {
+    gltf::read_checked(path)
+}
+
 /// Refuses a path that names a device or a socket (through any symlinks): `/dev/zero` or
 /// `/dev/urandom` would be read forever. Regular files and pipes (`<(...)`, FIFOs, which end
 /// when their writer closes) are read.
