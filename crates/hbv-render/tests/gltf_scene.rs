@@ -155,3 +155,38 @@ fn a_gltf_scene_gets_the_mesh_loader_s_checks() {
         assert!(e.contains("/dev/zero is not a regular file"), "{e}");
     }
 }
+
+/// A glTF scene's camera, lights and materials are checked as a TOML scene's are (they were
+/// taken as given, or a bad camera silently replaced by a default one).
+#[test]
+fn a_gltf_scene_s_values_are_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = quad_gltf();
+    for (name, from, to, reason) in [
+        (
+            "yfov.gltf",
+            r#""yfov": 0.8"#,
+            r#""yfov": 0"#,
+            "node 1: camera 0: fov must be between 0 and 180 degrees",
+        ),
+        (
+            "light.gltf",
+            r#""intensity": 4"#,
+            r#""intensity": -4"#,
+            "node 2: light 0: color times intensity must be finite and not negative",
+        ),
+        (
+            "ior.gltf",
+            r#""ior": 1.33"#,
+            r#""ior": 0"#,
+            "material 1: ior must be a number > 0, got 0",
+        ),
+    ] {
+        let text = good.replace(from, to);
+        assert_ne!(text, good, "{name}");
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        let e = load_scene(&path).unwrap_err().to_string();
+        assert!(e.contains(&format!("{name}: {reason}")), "{e}");
+    }
+}

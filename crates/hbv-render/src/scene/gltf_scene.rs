@@ -36,7 +36,13 @@ pub fn load_gltf_scene(path: &Path) -> Result<Scene, SceneError> {
         .or_else(|| document.scenes().next())
         .ok_or_else(|| error("scenes", "the file has no scene".into()))?;
 
-    let mut materials: Vec<Material> = document.materials().map(|m| material(&m)).collect();
+    let mut materials: Vec<Material> = document
+        .materials()
+        .map(|m| {
+            let place = format!("material {}", m.index().map_or(-1, |i| i as i64));
+            material(&m).map_err(|reason| error(&place, reason))
+        })
+        .collect::<Result<_, _>>()?;
     let default_material = materials.len() as u32;
     materials.push(Material::default_diffuse());
 
@@ -85,16 +91,30 @@ pub fn load_gltf_scene(path: &Path) -> Result<Scene, SceneError> {
         if let (None, Some(c)) = (&camera, node.camera()) {
             if let gltf::camera::Projection::Perspective(p) = c.projection() {
                 let position = world.transform_point3(Vec3::ZERO);
-                camera = Some(Camera {
+                let found = Camera {
                     position,
                     look_at: position + world.transform_vector3(-Vec3::Z),
                     up: world.transform_vector3(Vec3::Y),
                     fov_y_degrees: p.yfov().to_degrees(),
-                });
+                };
+                // As a TOML scene's camera is checked (a zero yfov, or a node scaled to 0).
+                if let Some(problem) = found.frame_error() {
+                    return Err(error(&place, format!("camera {}: {problem}", c.index())));
+                }
+                camera = Some(found);
             }
         }
         if let Some(light) = node.light() {
             let power = Vec3::from(light.color()) * light.intensity();
+            if !(power.is_finite() && power.min_element() >= 0.0) {
+                return Err(error(
+                    &place,
+                    format!(
+                        "light {}: color times intensity must be finite and not negative, got {power}",
+                        light.index()
+                    ),
+                ));
+            }
             lights.push(match light.kind() {
                 gltf::khr_lights_punctual::Kind::Directional => Light::Directional {
                     direction: world
@@ -124,7 +144,7 @@ pub fn load_gltf_scene(path: &Path) -> Result<Scene, SceneError> {
         (bounds.min + bounds.max) / 2.0,
         ((bounds.max - bounds.min).length() / 2.0).max(1e-6),
     );
-    scene.camera = match camera.filter(|c| c.frame_error().is_none()) {
+    scene.camera = match camera {
         Some(c) => c,
         None => Camera {
             position: centre + Vec3::new(0.0, 0.3 * radius, 2.6 * radius),
@@ -147,17 +167,26 @@ fn has_normals(primitive: &gltf::Primitive) -> bool {
     primitive.get(&gltf::Semantic::Normals).is_some()
 }
 
-fn material(m: &gltf::Material) -> Material {
+/// The Whitted material of a glTF material; an error for a non-finite or negative colour or
+/// emission, or an index of refraction that is not a positive number (as a TOML scene's).
+fn material(m: &gltf::Material) -> Result<Material, String> {
     let pbr = m.pbr_metallic_roughness();
     let [r, g, b, _] = pbr.base_color_factor();
     let base = Vec3::new(r, g, b);
+    let emission = Vec3::from(m.emissive_factor());
+    for (name, v) in [("baseColorFactor", base), ("emissiveFactor", emission)] {
+        if !(v.is_finite() && v.min_element() >= 0.0) {
+            return Err(format!("{name} must be finite and not negative, got {v}"));
+        }
+    }
     let roughness = pbr.roughness_factor().clamp(0.0, 1.0);
     let transmission = m.transmission().map_or(0.0, |t| t.transmission_factor());
     let surface = if transmission >= 0.5 {
-        Surface::Glass {
-            ior: m.ior().filter(|i| i.is_finite() && *i > 0.0).unwrap_or(1.5),
-            tint: base,
+        let ior = m.ior().unwrap_or(1.5);
+        if !(ior.is_finite() && ior > 0.0) {
+            return Err(format!("ior must be a number > 0, got {ior}"));
         }
+        Surface::Glass { ior, tint: base }
     } else if pbr.metallic_factor() >= 0.9 && roughness <= 0.1 {
         Surface::Mirror { reflectance: base }
     } else {
@@ -168,8 +197,5 @@ fn material(m: &gltf::Material) -> Material {
             exponent,
         }
     };
-    Material {
-        surface,
-        emission: Vec3::from(m.emissive_factor()),
-    }
+    Ok(Material { surface, emission })
 }
