@@ -71,8 +71,16 @@ def test_bad_arguments_raise_clear_errors(sphere):
         hbv.BVH(mesh, leaf_size=0)
     with pytest.raises(ValueError, match="face 0: vertex index 7 out of range"):
         hbv.Mesh(np.zeros((3, 3)), [[0, 1, 7]])
-    with pytest.raises(ValueError, match="faces: row 0"):
+    with pytest.raises(ValueError, match="faces: row 0: index -1 is negative"):
         hbv.Mesh(np.zeros((3, 3)), [[0, 1, -1]])
+    # An unsigned index is shown as it is (2^63 + 5 read as int64 was shown negative).
+    with pytest.raises(ValueError, match="faces: row 0: index 9223372036854775813 does not fit 32 bits"):
+        hbv.Mesh(np.zeros((3, 3)), np.array([[0, 1, 2**63 + 5]], np.uint64))
+    # A ragged list: NumPy's reason, not "expected a NumPy array".
+    with pytest.raises(TypeError, match="vertices: .*got a list that it cannot read: .*inhomogeneous"):
+        hbv.Mesh([[0, 0, 0], [1, 0]], [[0, 1, 2]])
+    with pytest.raises(TypeError, match=r"tmin: expected a number or an array of shape \(N,\), got str"):
+        hbv.BVH(hbv.Mesh(np.eye(3), [[0, 1, 2]])).intersect(np.zeros((1, 3)), np.ones((1, 3)), tmin="a")
     with pytest.raises(TypeError, match="faces: expected an integer dtype"):
         hbv.Mesh(np.zeros((3, 3)), np.zeros((1, 3)))
     with pytest.raises(ValueError, match="vertex 1: coordinate is not finite"):

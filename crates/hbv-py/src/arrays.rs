@@ -91,10 +91,14 @@ fn as_ndarray<'py>(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<Bound<'py, P
         .py()
         .import("numpy")?
         .call_method1("asarray", (obj,))
-        .map_err(|_| {
+        .map_err(|e| {
+            // NumPy's own reason: a ragged list ("inhomogeneous shape"), an object it cannot
+            // read.
             PyTypeError::new_err(format!(
-                "{name}: expected a NumPy array, got {}",
-                type_name(obj)
+                "{name}: expected a NumPy array or a sequence NumPy reads as one, got a {} \
+                 that it cannot read: {}",
+                type_name(obj),
+                e.value(obj.py())
             ))
         })?;
     Ok(converted.cast::<PyUntypedArray>()?.clone())
@@ -211,15 +215,27 @@ pub fn index_array(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<[u32; 3]>
             dtype.str()?
         )));
     }
-    let as_i64 = array.call_method1("astype", ("int64",))?;
-    let values = as_i64.cast::<PyArrayDyn<i64>>()?.readonly();
-    let flat: Vec<i64> = values.as_array().iter().copied().collect();
+    // Unsigned arrays as uint64 (an index above 2^63 read as int64 was shown negative).
+    let flat: Vec<i128> = if dtype.kind() == b'u' {
+        let as_u64 = array.call_method1("astype", ("uint64",))?;
+        let values = as_u64.cast::<PyArrayDyn<u64>>()?.readonly();
+        values.as_array().iter().map(|&i| i128::from(i)).collect()
+    } else {
+        let as_i64 = array.call_method1("astype", ("int64",))?;
+        let values = as_i64.cast::<PyArrayDyn<i64>>()?.readonly();
+        values.as_array().iter().map(|&i| i128::from(i)).collect()
+    };
     if let Some(k) = flat
         .iter()
-        .position(|&i| !(0..=u32::MAX as i64).contains(&i))
+        .position(|&i| !(0..=i128::from(u32::MAX)).contains(&i))
     {
+        let why = if flat[k] < 0 {
+            "is negative"
+        } else {
+            "does not fit 32 bits"
+        };
         return Err(PyValueError::new_err(format!(
-            "{name}: row {}: index {} is negative or too large",
+            "{name}: row {}: index {} {why}",
             k / 3,
             flat[k]
         )));
@@ -251,6 +267,13 @@ pub fn interval_bound<'py>(
     }
     if let Ok(x) = obj.extract::<f64>() {
         return Ok(IntervalBound::Scalar(x as f32));
+    }
+    if obj.is_instance_of::<pyo3::types::PyString>() || obj.is_instance_of::<pyo3::types::PyBytes>()
+    {
+        return Err(PyTypeError::new_err(format!(
+            "{name}: expected a number or an array of shape (N,), got {}",
+            type_name(obj)
+        )));
     }
     let (floats, _) = float_array(name, obj, None, Some((rays, "origins")))?;
     Ok(IntervalBound::PerRay(floats))
