@@ -400,6 +400,11 @@ fn empty_ray_file_gives_an_empty_hit_file() {
 // ------------------------------------------------------------------ output files
 
 fn trace_to(s: &Scene, out: &Path, force: bool) -> Output {
+    trace_with(s, out, if force { &["--force"] } else { &[] })
+}
+
+/// `hbv trace tetra.obj --rays rays.npz --out OUT` and `extra` arguments.
+fn trace_with(s: &Scene, out: &Path, extra: &[&str]) -> Output {
     let (mesh, rays) = (s.path("tetra.obj"), s.path("rays.npz"));
     let mut args = vec![
         OsStr::new("trace"),
@@ -409,9 +414,7 @@ fn trace_to(s: &Scene, out: &Path, force: bool) -> Output {
         OsStr::new("--out"),
         out.as_os_str(),
     ];
-    if force {
-        args.push(OsStr::new("--force"));
-    }
+    args.extend(extra.iter().map(OsStr::new));
     hbv(&args)
 }
 
@@ -500,17 +503,8 @@ fn devices_are_written_into_and_links_through() {
 #[test]
 fn absurd_thread_and_ray_counts_are_one_line() {
     let s = Scene::new();
-    let (mesh, rays, out) = (s.path("tetra.obj"), s.path("rays.npz"), s.path("hits.npz"));
-    let line = one_error_line(&hbv(&[
-        OsStr::new("trace"),
-        mesh.as_os_str(),
-        OsStr::new("--rays"),
-        rays.as_os_str(),
-        OsStr::new("--out"),
-        out.as_os_str(),
-        OsStr::new("--threads"),
-        OsStr::new("100000"),
-    ]));
+    let (mesh, out) = (s.path("tetra.obj"), s.path("hits.npz"));
+    let line = one_error_line(&trace_with(&s, &out, &["--threads", "100000"]));
     assert!(
         line.ends_with("--threads 100000: at most 1024 (0 uses every core)"),
         "{line}"

@@ -643,14 +643,20 @@ fn closest_point_on_a_torus_is_on_its_tube() {
         .is_none());
 }
 
-/// The grid is made once the points asked for reach `payback` per cell, counting the batch
-/// that reaches it, and the answers are the brute force's before and after.
-#[test]
-fn the_grid_is_made_once_enough_points_are_asked_for() {
+/// The deterministic runner's first room of [`room_and_points`], and its SAH tree.
+fn a_room() -> (TriangleMesh, hbv::bvh::BuildTree) {
     use proptest::strategy::ValueTree;
     let mut runner = proptest::test_runner::TestRunner::deterministic();
     let (mesh, _) = room_and_points().new_tree(&mut runner).unwrap().current();
     let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+    (mesh, tree)
+}
+
+/// The grid is made once the points asked for reach `payback` per cell, counting the batch
+/// that reaches it, and the answers are the brute force's before and after.
+#[test]
+fn the_grid_is_made_once_enough_points_are_asked_for() {
+    let (mesh, tree) = a_room();
     let config = CandidateGridConfig {
         cells: 512,
         payback: 2.0,
@@ -695,10 +701,7 @@ fn the_grid_is_made_once_enough_points_are_asked_for() {
 /// cell boundaries gets the brute force's answers.
 #[test]
 fn room_grid_lists_candidates_and_agrees() {
-    use proptest::strategy::ValueTree;
-    let mut runner = proptest::test_runner::TestRunner::deterministic();
-    let (mesh, _) = room_and_points().new_tree(&mut runner).unwrap().current();
-    let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+    let (mesh, tree) = a_room();
     let at_once = CandidateGridConfig {
         payback: 0.0,
         ..CandidateGridConfig::default()

@@ -86,13 +86,8 @@ fn document_and_buffers(
 /// every mesh primitive (POSITION and indices) checked ([`check_accessor`]), so that the
 /// `gltf` crate's reader can be trusted with them.
 pub(super) fn read_checked(path: &Path) -> Result<(Document, Vec<buffer::Data>), MeshError> {
-    super::refuse_devices(path).map_err(|e| MeshError::io(path, e))?;
-    let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
-    let folder = match path.parent() {
-        Some(dir) if !dir.as_os_str().is_empty() => dir,
-        _ => Path::new("."),
-    };
-    let (document, buffers) = document_and_buffers(path, &bytes, Some(folder))?;
+    let bytes = super::read_mesh_file(path)?;
+    let (document, buffers) = document_and_buffers(path, &bytes, Some(super::folder_of(path)))?;
     let buffer_bytes = buffers.iter().map(|b| b.len()).sum();
     for mesh in document.meshes() {
         for primitive in mesh.primitives() {

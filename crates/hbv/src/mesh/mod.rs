@@ -79,18 +79,11 @@ impl TriangleMesh {
         let format = MeshFormat::from_path(path).ok_or_else(|| MeshError::UnsupportedFormat {
             source_name: path.into(),
         })?;
-        refuse_devices(path).map_err(|e| MeshError::io(path, e))?;
-        let bytes = std::fs::read(path).map_err(|e| MeshError::io(path, e))?;
+        let bytes = read_mesh_file(path)?;
         match format {
             MeshFormat::Obj => obj::parse(path, &bytes),
             MeshFormat::Ply => ply::parse(path, &bytes),
-            MeshFormat::Gltf => {
-                let folder = match path.parent() {
-                    Some(dir) if !dir.as_os_str().is_empty() => dir,
-                    _ => Path::new("."),
-                };
-                gltf::parse(path, &bytes, Some(folder))
-            }
+            MeshFormat::Gltf => gltf::parse(path, &bytes, Some(folder_of(path))),
         }
     }
 
@@ -162,6 +155,20 @@ impl TriangleMesh {
 /// `/dev/zero` for ever and panics on some malformed files.
 pub fn read_gltf(path: &Path) -> Result<(::gltf::Document, Vec<::gltf::buffer::Data>), MeshError> {
     gltf::read_checked(path)
+}
+
+/// The bytes of a mesh file, devices refused ([`refuse_devices`]).
+fn read_mesh_file(path: &Path) -> Result<Vec<u8>, MeshError> {
+    refuse_devices(path).map_err(|e| MeshError::io(path, e))?;
+    std::fs::read(path).map_err(|e| MeshError::io(path, e))
+}
+
+/// The folder holding `path`, where a glTF file's external buffers are looked for.
+fn folder_of(path: &Path) -> &Path {
+    match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    }
 }
 
 /// Refuses a path that names a device or a socket (through any symlinks): `/dev/zero` or

@@ -265,7 +265,10 @@ impl ClosestPointTree {
             bounds: (b.min.as_dvec3(), b.max.as_dvec3()),
             queried: AtomicUsize::new(0),
         };
-        if search.grid_threshold() == 0 {
+        if grid.cells == 0 {
+            // No grid to wait for: queries need not count.
+            let _ = search.grid.set(None);
+        } else if search.grid_threshold() == 0 {
             search.grid_for(0);
         }
         search
@@ -285,9 +288,6 @@ impl ClosestPointTree {
     /// Points asked for after which the grid is made ([`CandidateGridConfig::payback`]).
     fn grid_threshold(&self) -> usize {
         let config = &self.grid_config;
-        if config.cells == 0 {
-            return usize::MAX;
-        }
         (config.payback.max(0.0) * config.cells as f64).min(usize::MAX as f64) as usize
     }
 
