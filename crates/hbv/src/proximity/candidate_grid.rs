@@ -60,10 +60,10 @@ pub struct CandidateGridConfig {
     /// on two), and a grid saves its cost only over many queries: the Cornell box answers 1.6
     /// million points a second without one and 8 million with one, so the grid pays for itself
     /// after about 140,000 points. Made at once, it made a first call of 1,000 points take 27
-    /// ms instead of 0.5 (BENCHMARKS.md). Made when the searches without it have cost about what it costs
-    /// (4 points a cell), a user's queries take at most about twice as long as with the better
-    /// choice in hindsight (the ski-rental argument); a batch that reaches the count on its
-    /// own (131,072 points for the default cells) gets the grid at once.
+    /// ms instead of 0.5 (BENCHMARKS.md). Made when the searches without it have cost about
+    /// what it costs (4 points a cell), a user's queries take at most about twice as long as
+    /// with the better choice in hindsight (the ski-rental argument); a batch that reaches the
+    /// count on its own (131,072 points for the default cells) gets the grid at once.
     pub payback: f64,
 }
 
