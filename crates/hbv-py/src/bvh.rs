@@ -242,10 +242,11 @@ impl PyBvh {
         hit_counts(py, || self.wide(), &args, threads)
     }
 
-    /// Whether each point lies inside the (closed) mesh: bool array. The majority of three
-    /// ray parity votes (see hbv::proximity::inside); points on the surface may go either way.
-    /// A RuntimeWarning when the mesh is not closed (`Mesh.open_edges` > 0): inside is then
-    /// not defined near its open edges.
+    /// Whether each point lies inside the (closed) mesh: bool array. One ray's parity, exact:
+    /// a ray through an edge or vertex counts a crossing once (see hbv::proximity::inside);
+    /// points on the surface may go either way. A RuntimeWarning when the mesh is not closed
+    /// (`Mesh.open_edges` > 0): inside is then not defined near its open edges, and the
+    /// majority of three rays' parities answers (steadier there than one ray).
     #[pyo3(signature = (points, threads=None))]
     fn contains<'py>(
         &self,

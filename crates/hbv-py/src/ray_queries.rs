@@ -2,7 +2,7 @@
 //! once, answered by any [`Accelerator`] / [`AllHits`] on all cores with the GIL released.
 
 use hbv::geometry::Ray;
-use hbv::proximity::contains;
+use hbv::proximity::{contains, contains_by_majority};
 use hbv::{Accelerator, AllHits};
 use numpy::{IntoPyArray, PyArray1};
 use pyo3::prelude::*;
@@ -278,9 +278,10 @@ pub fn hit_counts<'py, 's, A: AllHits + ?Sized + 's>(
     Ok(counts.into_pyarray(py))
 }
 
-/// Whether each point lies inside the (closed) mesh: bool array. The majority of three ray
-/// parity votes (see hbv::proximity::inside); points on the surface may go either way. Warns
-/// (RuntimeWarning) when `mesh` is not closed.
+/// Whether each point lies inside the (closed) mesh: bool array. One ray's parity, exact
+/// (hbv::proximity::contains); points on the surface may go either way. When `mesh` is not
+/// closed: a RuntimeWarning, and the majority of three rays' parities
+/// (hbv::proximity::contains_by_majority), steadier where inside is not defined.
 pub fn inside<'py, 's, A: AllHits + ?Sized + 's>(
     py: Python<'py>,
     mesh: &PyMesh,
@@ -290,13 +291,19 @@ pub fn inside<'py, 's, A: AllHits + ?Sized + 's>(
 ) -> PyResult<Bound<'py, PyArray1<bool>>> {
     let (points, rows) = float_array("points", points, Some(3), None)?;
     mesh.warn_if_open(py, "contains")?;
+    let closed = mesh.open_edge_count(py) == 0;
     let points = points.values();
     let mut result = vec![false; rows];
     py.detach(|| {
         let structure = structure();
         fill_rows(threads, &mut result[..], |first, out| {
             for (k, o) in out.iter_mut().enumerate() {
-                *o = contains(structure, points.row3(first + k));
+                let point = points.row3(first + k);
+                *o = if closed {
+                    contains(structure, point)
+                } else {
+                    contains_by_majority(structure, point)
+                };
             }
         })
     })?;

@@ -12,8 +12,12 @@ use crate::query::Hit;
 ///
 /// Answers are sorted by `t`, equal `t` by primitive id, so any two structures (and
 /// [`BruteForce`](crate::BruteForce), the reference) give identical lists. Invalid rays (see
-/// [`Ray::is_valid`]) and degenerate triangles give no hits. A ray through an edge or vertex
-/// shared by several triangles hits each of them that the watertight test accepts.
+/// [`Ray::is_valid`]) and degenerate triangles give no hits. A ray passing exactly through an
+/// edge or a vertex hits the triangles there as [`EdgeRule::HalfOpen`] says: where it crosses
+/// the surface, exactly one of them (decided exactly), so a count is a count of crossings and
+/// its parity is right on closed meshes; where it only touches the surface, none or two.
+///
+/// [`EdgeRule::HalfOpen`]: crate::geometry::EdgeRule::HalfOpen
 pub trait AllHits: Send + Sync {
     /// Replaces the contents of `hits` with every hit along `ray`, sorted by `(t, prim)`.
     fn all_hits(&self, ray: &Ray, hits: &mut Vec<Hit>);

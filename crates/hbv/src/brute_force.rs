@@ -1,6 +1,6 @@
 //! The reference answer: every triangle tested against every ray.
 
-use crate::geometry::{PreparedRay, Ray, Triangle};
+use crate::geometry::{EdgeRule, PreparedRay, Ray, Triangle};
 use crate::mesh::TriangleMesh;
 use crate::query::{record_closer_hit, Hit, TraversalKernel};
 use crate::stats::Counter;
@@ -59,7 +59,7 @@ impl crate::all_hits::AllHits for BruteForce {
         }
         let prepared = PreparedRay::new(ray);
         for (prim, tri) in &self.triangles {
-            if let Some(h) = tri.intersect(&prepared) {
+            if let Some(h) = tri.intersect_by(&prepared, EdgeRule::HalfOpen) {
                 hits.push(Hit {
                     t: h.t,
                     prim: *prim,

@@ -1,10 +1,13 @@
 //! Geometric primitives: boxes, rays and triangles, and the exact tests between them.
 
 mod aabb;
+mod edge_rule;
+mod exact_sign;
 mod ray;
 mod triangle;
 
 pub use aabb::Aabb;
+pub use edge_rule::EdgeRule;
 pub use ray::{PreparedRay, Ray};
 pub(crate) use triangle::{shared_edge_error, SHARED_EDGE_ERROR};
 pub use triangle::{Triangle, TriangleHit};

@@ -1,6 +1,7 @@
 use glam::{DVec3, Vec3};
 
-use super::{Aabb, PreparedRay};
+use super::exact_sign;
+use super::{Aabb, EdgeRule, PreparedRay};
 
 /// A triangle by its three vertices, in the order of the mesh file.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -83,12 +84,25 @@ impl Triangle {
     /// (`edge_error`); where an edge function exceeds its bound its sign is certain (the sign of
     /// the exactly sheared geometry). Only when some edge function is within its bound of zero —
     /// a ray within rounding distance of an edge or vertex, or a grazing ray — is the triangle
-    /// decided in f64 (`intersect_near_edge`). Which precision decides an edge depends only on
+    /// decided in f64 (`intersect_near_edge`), and an edge whose f64 function is within its own
+    /// bound of zero by exact arithmetic. Which precision decides an edge depends only on
     /// that edge, and each vertex is transformed by the same operations whichever triangle it
     /// belongs to, so both triangles of a shared edge decide it alike: no ray slips between
-    /// them, and none is lost at a silhouette to the f32 rounding of the shear.
+    /// them, and none is lost at a silhouette to rounding. Every edge sign is therefore the
+    /// exact one; a ray through an edge's line exactly (a zero edge function) is decided by
+    /// the [`EdgeRule`]: here [`EdgeRule::Closed`], so a touch is a hit.
     #[inline]
     pub fn intersect(&self, ray: &PreparedRay) -> Option<TriangleHit> {
+        self.intersect_by(ray, EdgeRule::Closed)
+    }
+
+    /// [`Triangle::intersect`] with the given rule for a ray that passes exactly through an edge
+    /// or a vertex: [`EdgeRule::Closed`] (every triangle having the edge or vertex is hit: the
+    /// closest- and any-hit queries) or [`EdgeRule::HalfOpen`] (exactly one crossing where a
+    /// surface is crossed: counts and inside tests). Either rule changes only the rays whose
+    /// edge functions are exactly zero, decided on the rare near-edge path.
+    #[inline(always)]
+    pub fn intersect_by(&self, ray: &PreparedRay, rule: EdgeRule) -> Option<TriangleHit> {
         let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
         let s = ray.shear;
         let a = self.p0 - ray.origin;
@@ -124,7 +138,7 @@ impl Triangle {
         let certain = u.abs() > eu && v.abs() > ev && w.abs() > ew;
         if !certain {
             // Near an edge or a vertex (or a grazing ray): decide in f64.
-            return self.intersect_near_edge(ray, [u, v, w], [eu, ev, ew]);
+            return self.intersect_near_edge(ray, [u, v, w], [eu, ev, ew], rule);
         }
         // All three certain and of one sign: the determinant is their sum, never zero.
         let det = u + v + w;
@@ -204,16 +218,20 @@ impl Triangle {
     ///
     /// The three edge functions are recomputed in f64 from the exact vertex differences and an
     /// f64 shear (error about 1e-16 instead of 1e-7: a grazing ray that passes a hair inside a
-    /// thin projected triangle is found). Each edge keeps its f32 sign where that was certain and
-    /// takes the f64 sign otherwise: whether an edge's sign comes from f32 or f64 depends only on
-    /// that edge, and f64 edge functions of a shared edge are exact negatives, so the two
-    /// triangles of every edge still decide it alike — watertight. Zeros count as on the edge.
+    /// thin projected triangle is found). Each edge keeps its f32 sign where that was certain,
+    /// takes the f64 sign where that is certain (beyond its own bound, [`edge_error_f64`]), and
+    /// otherwise its exact sign ([`Triangle::exact_edge_sign`]): whether an edge's sign comes
+    /// from f32, f64 or exact arithmetic depends only on that edge, and the edge functions of
+    /// a shared edge are exact negatives in each, so the two triangles of every edge decide it
+    /// alike — watertight. An edge function that is exactly zero (the ray passes through the
+    /// edge's line) counts as the `rule` says.
     #[cold]
     fn intersect_near_edge(
         &self,
         ray: &PreparedRay,
         f32_edges: [f32; 3],
         bounds: [f32; 3],
+        rule: EdgeRule,
     ) -> Option<TriangleHit> {
         let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
         let d = ray.direction.as_dvec3();
@@ -227,20 +245,46 @@ impl Triangle {
         let (ax, ay) = (a[kx] - sx * a[kz], a[ky] - sy * a[kz]);
         let (bx, by) = (b[kx] - sx * b[kz], b[ky] - sy * b[kz]);
         let (cx, cy) = (c[kx] - sx * c[kz], c[ky] - sy * c[kz]);
-        let exact = [cx * by - cy * bx, ax * cy - ay * cx, bx * ay - by * ax];
+        let mut exact = [cx * by - cy * bx, ax * cy - ay * cx, bx * ay - by * ax];
+        let (ma, mb, mc) = (
+            a.abs().max_element(),
+            b.abs().max_element(),
+            c.abs().max_element(),
+        );
+        let f64_bounds = [
+            edge_error_f64(mb.max(mc), bx, by, cx, cy),
+            edge_error_f64(mc.max(ma), cx, cy, ax, ay),
+            edge_error_f64(ma.max(mb), ax, ay, bx, by),
+        ];
+        // Edge k runs from `first[k]` to `second[k]` (`U` is the edge p1 → p2, and so on).
+        let first = [self.p1, self.p2, self.p0];
+        let second = [self.p2, self.p0, self.p1];
 
-        let sign = |k: usize| -> i8 {
+        let mut sign = |k: usize| -> i8 {
             let (f, e) = (f32_edges[k], bounds[k]);
             if f > e {
-                1
+                return 1;
             } else if f < -e {
-                -1
-            } else if exact[k] > 0.0 {
-                1
-            } else if exact[k] < 0.0 {
-                -1
-            } else {
-                0
+                return -1;
+            }
+            let value = exact[k];
+            if value.abs() > f64_bounds[k] {
+                return if value > 0.0 { 1 } else { -1 };
+            }
+            let f64_sign = (value > 0.0) as i8 - (value < 0.0) as i8;
+            // (`None`: a coordinate is not finite after all; the f64 sign is all there is.)
+            match Self::exact_edge_sign(ray, first[k], second[k]) {
+                Some(0) => {
+                    exact[k] = 0.0;
+                    match rule {
+                        EdgeRule::Closed => 0,
+                        EdgeRule::HalfOpen => {
+                            Self::moved_edge_sign(ray, first[k], second[k]).unwrap_or(0)
+                        }
+                    }
+                }
+                Some(sign) => sign,
+                None => f64_sign,
             }
         };
         let signs = [sign(0), sign(1), sign(2)];
@@ -266,6 +310,64 @@ impl Triangle {
 }
 
 impl Triangle {
+    /// The exact sign of the edge function of the edge `p → q` (`E = Qx Py − Qy Px` in the ray's
+    /// exactly sheared frame; `U` of [`Triangle::intersect`] is the edge p1 → p2). `None` if a
+    /// coordinate is not finite.
+    ///
+    /// In the frame's axes (`kx`, `ky`, `kz`, and `P' = P − o`) the edge function is a
+    /// determinant over the direction's dominant component,
+    ///
+    /// ```text
+    ///   E = det[Q', P', d] / d_kz
+    /// ```
+    ///
+    /// (the sheared points are `P' − (P'_kz / d_kz) d`, and subtracting multiples of `d` from
+    /// the rows does not change the determinant), evaluated exactly (`exact_sign`).
+    fn exact_edge_sign(ray: &PreparedRay, p: Vec3, q: Vec3) -> Option<i8> {
+        let (o, d, p, q) = Self::in_frame(ray, [ray.origin, ray.direction, p, q]);
+        Some(exact_sign::orientation_sign(o, q, p, d)? * Self::towards_z(d))
+    }
+
+    /// The sign [`EdgeRule::HalfOpen`] gives an edge function that is exactly zero (the ray
+    /// passes through the edge's line): the sign `E` takes when the ray is moved by an
+    /// infinitesimal `ε` along the frame's x axis, or failing that (an edge parallel to x)
+    /// `ε²` along y (Edelsbrunner & Mücke's simulation of simplicity, 1990). Moving the ray
+    /// to `(ε, ε²)` gives `E + ε ∂E/∂x + ε² ∂E/∂y`, with `∂E/∂x = Qy − Py` and
+    /// `∂E/∂y = Px − Qx`. Both are zero only for an edge parallel to the ray, whose triangle is
+    /// parallel to the ray and missed anyway.
+    ///
+    /// Every triangle a ray meets sees the same moved ray, a ray in general position: of two
+    /// triangles sharing an edge the ray crosses, exactly one is hit; of a fan around a vertex
+    /// where the ray crosses the surface, exactly one; where it only touches the surface,
+    /// none or two.
+    fn moved_edge_sign(ray: &PreparedRay, p: Vec3, q: Vec3) -> Option<i8> {
+        let (_, d, p, q) = Self::in_frame(ray, [ray.origin, ray.direction, p, q]);
+        // `(Qy − Py) d_z = (q_y − p_y) d_z − d_y (q_z − p_z)`: the origin cancels; and
+        // `(Px − Qx) d_z` alike on x.
+        let along_x = exact_sign::cross_sign(p, q, d, 1, 2)?;
+        let sign = if along_x != 0 {
+            along_x
+        } else {
+            exact_sign::cross_sign(q, p, d, 0, 2)?
+        };
+        Some(sign * Self::towards_z(d))
+    }
+
+    /// Points and vectors in the ray's frame axes: `(v_kx, v_ky, v_kz)`.
+    fn in_frame(ray: &PreparedRay, vectors: [Vec3; 4]) -> (Vec3, Vec3, Vec3, Vec3) {
+        let [a, b, c, d] = vectors.map(|v| Vec3::new(v[ray.kx], v[ray.ky], v[ray.kz]));
+        (a, b, c, d)
+    }
+
+    /// The sign of the direction's dominant component (never zero for a valid ray).
+    fn towards_z(direction_in_frame: Vec3) -> i8 {
+        if direction_in_frame.z > 0.0 {
+            1
+        } else {
+            -1
+        }
+    }
+
     /// Whether the ray's direction is exactly parallel to the triangle's plane:
     /// `Ng · d = det[p1 − p0, p2 − p0, d] = 0`, by Shewchuk's adaptive `orient3d` on the exact
     /// f64 edge vectors (an f32 difference is exact in f64), exact in sign.
@@ -348,6 +450,14 @@ impl Triangle {
 #[inline]
 fn edge_error(max_component: f32, px: f32, py: f32, qx: f32, qy: f32) -> f32 {
     (EDGE_ERROR * max_component) * (((px.abs() + py.abs()) + qx.abs()) + qy.abs())
+}
+
+/// [`edge_error`] for the f64 edge functions of [`Triangle::intersect_near_edge`]: the same
+/// analysis with f64's `ε = 2^-52` (the vertex differences, the shear constants, the products and
+/// the subtraction each round once), and a margin of 4 instead of 2. Every value here comes from
+/// f32 coordinates, so no product underflows.
+fn edge_error_f64(max_component: f64, px: f64, py: f64, qx: f64, qy: f64) -> f64 {
+    16.0 * f64::EPSILON * max_component * (px.abs() + py.abs() + qx.abs() + qy.abs())
 }
 
 /// `8 ε` of [`edge_error`].

@@ -2,7 +2,7 @@
 
 use super::{CellWalk, Mailbox, UniformGrid};
 use crate::all_hits::{sort_hits, AllHits};
-use crate::geometry::{PreparedRay, Ray};
+use crate::geometry::{EdgeRule, PreparedRay, Ray};
 use crate::query::Hit;
 
 impl AllHits for UniformGrid {
@@ -22,7 +22,7 @@ impl AllHits for UniformGrid {
         let prepared = PreparedRay::new(ray);
         let (triangles, prims) = self.listed_triangles();
         let mut record = |local: usize| {
-            if let Some(h) = triangles[local].intersect(&prepared) {
+            if let Some(h) = triangles[local].intersect_by(&prepared, EdgeRule::HalfOpen) {
                 hits.push(Hit {
                     t: h.t,
                     prim: prims[local],

@@ -26,7 +26,7 @@ pub use candidate_grid::CandidateGridConfig;
 pub use closest_point::{
     closest_point_brute_force, ClosestPoint, ClosestPointColumns, ClosestPointTree, SearchTally,
 };
-pub use inside::contains;
+pub use inside::{contains, contains_along, contains_by_majority};
 pub use point_triangle::{closest_point_on_triangle, TrianglePoint};
 pub use query_points::{FlatPoints, QueryPoints};
 pub use search_tree::SearchTreeConfig;

@@ -4,7 +4,7 @@
 use super::wide::{TrianglePacket, WideLayout};
 use super::wide_kernels::Lanes;
 use crate::all_hits::{sort_hits, AllHits};
-use crate::geometry::{PreparedRay, Ray};
+use crate::geometry::{EdgeRule, PreparedRay, Ray};
 use crate::query::Hit;
 
 impl<const W: usize> AllHits for WideLayout<W> {
@@ -55,7 +55,7 @@ fn keep_hits(packets: &[TrianglePacket], ray: &PreparedRay, hits: &mut Vec<Hit>)
             let hit = if test.hit >> lane & 1 == 1 {
                 Some(test.hit(lane))
             } else {
-                packet.triangle(lane).intersect(ray)
+                packet.triangle(lane).intersect_by(ray, EdgeRule::HalfOpen)
             };
             if let Some(h) = hit {
                 hits.push(Hit {

@@ -1,0 +1,248 @@
+//! Exact signs of the small polynomials that decide a ray's side of a triangle edge, for the
+//! rays that touch an edge or a vertex exactly.
+//!
+//! Every input is an f32, so the product of two is exact in f64 (24 + 24 significant bits of
+//! 53) and the product of three is exact as the sum of two f64s (`two_product`); a sum of such
+//! terms is then kept exactly as a nonoverlapping expansion (Shewchuk, "Adaptive Precision
+//! Floating-Point Arithmetic and Fast Robust Geometric Predicates", 1997, §2), whose sign is
+//! the sign of its largest component. Nothing overflows or underflows: a product of three f32s
+//! lies between about 1e-135 and 4e115, well inside f64's normal range, and so do the rounding
+//! errors `two_product` and `two_sum` split off.
+//!
+//! These are slow (a few microseconds) and called only where an f64 evaluation is within its
+//! own rounding bound of zero: the ray passes exactly, or within about 1e-16 relative, through
+//! an edge's line.
+
+use glam::Vec3;
+
+/// A sum of f64 terms held exactly: a nonoverlapping expansion, smallest component first, with
+/// zero components dropped (Shewchuk's Grow-Expansion with zero elimination).
+struct ExactSum {
+    parts: [f64; Self::CAPACITY],
+    len: usize,
+    finite: bool,
+}
+
+impl ExactSum {
+    /// Each term added lengthens the expansion by at most one component; the largest sum here
+    /// has 36 terms (`orientation_sign`).
+    const CAPACITY: usize = 40;
+
+    fn new() -> Self {
+        Self {
+            parts: [0.0; Self::CAPACITY],
+            len: 0,
+            finite: true,
+        }
+    }
+
+    /// Adds the f64 `b` exactly.
+    fn add(&mut self, b: f64) {
+        if !b.is_finite() {
+            self.finite = false;
+            return;
+        }
+        let mut carry = b;
+        let mut kept = 0;
+        for i in 0..self.len {
+            let (sum, error) = two_sum(carry, self.parts[i]);
+            carry = sum;
+            if error != 0.0 {
+                self.parts[kept] = error;
+                kept += 1;
+            }
+        }
+        if carry != 0.0 {
+            self.parts[kept] = carry;
+            kept += 1;
+        }
+        self.len = kept;
+        assert!(self.len < Self::CAPACITY, "ExactSum holds at most 39 terms");
+    }
+
+    /// Adds the product `a b` exactly (as the rounded product and its rounding error).
+    fn add_product(&mut self, a: f64, b: f64) {
+        let (product, error) = two_product(a, b);
+        self.add(error);
+        self.add(product);
+    }
+
+    /// The sign of the exact sum (the sign of its largest component), or `None` if a term was
+    /// not finite.
+    fn sign(&self) -> Option<i8> {
+        if !self.finite {
+            return None;
+        }
+        Some(match self.len {
+            0 => 0,
+            n if self.parts[n - 1] > 0.0 => 1,
+            _ => -1,
+        })
+    }
+}
+
+/// `a + b` as the rounded sum and its exact rounding error (Knuth's TwoSum; no condition on
+/// the magnitudes).
+#[inline]
+fn two_sum(a: f64, b: f64) -> (f64, f64) {
+    let sum = a + b;
+    let b_virtual = sum - a;
+    let a_virtual = sum - b_virtual;
+    (sum, (a - a_virtual) + (b - b_virtual))
+}
+
+/// `a b` as the rounded product and its exact rounding error, by one fused multiply-add.
+#[inline]
+fn two_product(a: f64, b: f64) -> (f64, f64) {
+    let product = a * b;
+    (product, a.mul_add(b, -product))
+}
+
+/// Adds `det[a, b, c]` (rows `a`, `b`, `c`), times `sign` (±1), to `sum`: six products of three
+/// f32s, each exact as two f64s.
+fn add_determinant(sum: &mut ExactSum, sign: f64, a: Vec3, b: Vec3, c: Vec3) {
+    let (a, b, c) = (a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
+    // a·(b × c), each term a product of two f32s (exact) and a third.
+    for (first, second, third) in [
+        (a.x * b.y, c.z, sign),
+        (a.x * b.z, c.y, -sign),
+        (a.y * b.x, c.z, -sign),
+        (a.y * b.z, c.x, sign),
+        (a.z * b.x, c.y, sign),
+        (a.z * b.y, c.x, -sign),
+    ] {
+        sum.add_product(first * third, second);
+    }
+}
+
+/// The exact sign of `det[p − o, q − o, d]` (rows), for f32 points `o`, `p`, `q` and an f32
+/// vector `d`: which side of the plane through `o` spanned by `p − o` and `d` the point `q`
+/// lies on. `None` if a coordinate is not finite.
+///
+/// The differences are not formed (`p − o` may not be exact even in f64); by linearity in each
+/// row, `det[p − o, q − o, d] = det[p, q, d] − det[o, q, d] − det[p, o, d]`.
+pub(crate) fn orientation_sign(o: Vec3, p: Vec3, q: Vec3, d: Vec3) -> Option<i8> {
+    let mut sum = ExactSum::new();
+    add_determinant(&mut sum, 1.0, p, q, d);
+    add_determinant(&mut sum, -1.0, o, q, d);
+    add_determinant(&mut sum, -1.0, p, o, d);
+    sum.sign()
+}
+
+/// The exact sign of `(q_i − p_i) d_k − d_i (q_k − p_k)`, for f32 points `p`, `q` and an f32
+/// vector `d`: the 2D cross product of the edge `q − p` and `d` in the coordinate plane of axes
+/// `i` and `k`. `None` if a coordinate is not finite.
+pub(crate) fn cross_sign(p: Vec3, q: Vec3, d: Vec3, i: usize, k: usize) -> Option<i8> {
+    let (p, q, d) = (p.as_dvec3(), q.as_dvec3(), d.as_dvec3());
+    let mut sum = ExactSum::new();
+    // Each term a product of two f32s: exact in f64.
+    for term in [q[i] * d[k], -p[i] * d[k], -d[i] * q[k], d[i] * p[k]] {
+        sum.add(term);
+    }
+    sum.sign()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `det[p − o, q − o, d]` of integer points, in i128 (exact for coordinates below 2^24).
+    fn integer_orientation(o: [i64; 3], p: [i64; 3], q: [i64; 3], d: [i64; 3]) -> i128 {
+        let a: Vec<i128> = (0..3).map(|k| (p[k] - o[k]) as i128).collect();
+        let b: Vec<i128> = (0..3).map(|k| (q[k] - o[k]) as i128).collect();
+        let c: Vec<i128> = d.iter().map(|&x| x as i128).collect();
+        a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+            + a[2] * (b[0] * c[1] - b[1] * c[0])
+    }
+
+    fn vec(v: [i64; 3], scale: f32) -> Vec3 {
+        Vec3::new(v[0] as f32, v[1] as f32, v[2] as f32) * scale
+    }
+
+    /// A small deterministic generator (SplitMix64).
+    fn next(state: &mut u64) -> u64 {
+        *state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = *state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    #[test]
+    fn sums_cancelling_far_apart_magnitudes_keep_their_sign() {
+        let mut sum = ExactSum::new();
+        for term in [1e100, 1.0, -1e100] {
+            sum.add(term);
+        }
+        assert_eq!(sum.sign(), Some(1));
+        let mut sum = ExactSum::new();
+        for term in [1e-100, 1e100, -1e-100, -1e100] {
+            sum.add(term);
+        }
+        assert_eq!(sum.sign(), Some(0));
+        let mut sum = ExactSum::new();
+        sum.add(f64::NAN);
+        assert_eq!(sum.sign(), None);
+    }
+
+    #[test]
+    fn orientation_matches_integer_arithmetic_on_coplanar_and_near_coplanar_points() {
+        let mut state = 7;
+        let mut zeros = 0;
+        for case in 0..20_000 {
+            let mut coordinate =
+                |bits: u32| (next(&mut state) % (1 << bits)) as i64 - (1 << (bits - 1));
+            let o = [coordinate(20), coordinate(20), coordinate(20)];
+            let p = [coordinate(20), coordinate(20), coordinate(20)];
+            let d = [coordinate(8), coordinate(8), coordinate(8)];
+            // Half the cases put q exactly on the plane (o, p − o, d), then nudge it by 0 or 1.
+            let q = if case % 2 == 0 {
+                let (alpha, beta) = (coordinate(3), coordinate(3));
+                let nudge = [coordinate(2).signum(), 0, 0];
+                [0, 1, 2].map(|k| o[k] + alpha * (p[k] - o[k]) + beta * d[k] + nudge[k])
+            } else {
+                [coordinate(20), coordinate(20), coordinate(20)]
+            };
+            if q.iter().any(|x| x.abs() >= 1 << 24) {
+                continue;
+            }
+            let expected = integer_orientation(o, p, q, d).signum() as i8;
+            zeros += (expected == 0) as u32;
+            // A power-of-two scale keeps every coordinate exact and every sign.
+            let scale = [1.0, 2f32.powi(-60), 2f32.powi(40)][case % 3];
+            let got = orientation_sign(vec(o, scale), vec(p, scale), vec(q, scale), vec(d, 1.0));
+            assert_eq!(got, Some(expected), "case {case}: {o:?} {p:?} {q:?} {d:?}");
+        }
+        assert!(zeros > 1_000, "the test must reach exact zeros ({zeros})");
+    }
+
+    #[test]
+    fn cross_sign_matches_integer_arithmetic() {
+        let mut state = 11;
+        for case in 0..20_000 {
+            let mut coordinate =
+                |bits: u32| (next(&mut state) % (1 << bits)) as i64 - (1 << (bits - 1));
+            let p = [coordinate(23), coordinate(23), coordinate(23)];
+            let d = [coordinate(4), coordinate(4), coordinate(4)];
+            let q = if case % 2 == 0 {
+                let step = coordinate(4);
+                [0, 1, 2].map(|k| p[k] + step * d[k] + (case % 4 == 0) as i64)
+            } else {
+                [coordinate(23), coordinate(23), coordinate(23)]
+            };
+            let (i, k) = [(0, 2), (1, 2), (2, 0)][case % 3];
+            let expected = ((q[i] - p[i]) as i128 * d[k] as i128
+                - d[i] as i128 * (q[k] - p[k]) as i128)
+                .signum() as i8;
+            let got = cross_sign(vec(p, 1.0), vec(q, 1.0), vec(d, 1.0), i, k);
+            assert_eq!(got, Some(expected), "case {case}");
+        }
+    }
+
+    #[test]
+    fn non_finite_coordinates_have_no_sign() {
+        let inf = Vec3::new(f32::INFINITY, 0.0, 0.0);
+        assert_eq!(orientation_sign(Vec3::ZERO, inf, Vec3::Y, Vec3::Z), None);
+        assert_eq!(cross_sign(Vec3::ZERO, inf, Vec3::Z, 0, 2), None);
+    }
+}
