@@ -212,7 +212,9 @@ impl PyBvh {
 
     /// Every hit along each ray, found in one traversal per ray: a tuple of arrays
     /// (ray index int64, t float32, prim int64), in ray order and, within a ray, sorted by t
-    /// (equal t by prim).
+    /// (equal t by prim). A ray crossing the surface exactly through an edge or vertex lists
+    /// one of the triangles there (decided exactly), so a closed mesh is crossed an even
+    /// number of times by a ray from outside.
     #[pyo3(signature = (origins, directions, tmin=None, tmax=None, threads=None))]
     fn intersect_all<'py>(
         &self,
@@ -227,7 +229,8 @@ impl PyBvh {
         every_hit(py, || self.wide(), &args, threads)
     }
 
-    /// The number of hits along each ray (int64): the length of its `intersect_all` list.
+    /// The number of hits along each ray (int64): the length of its `intersect_all` list, so
+    /// a crossing through an edge or vertex counts once.
     #[pyo3(signature = (origins, directions, tmin=None, tmax=None, threads=None))]
     fn count<'py>(
         &self,
