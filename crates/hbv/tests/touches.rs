@@ -298,3 +298,43 @@ mod random_terrains {
         }
     }
 }
+
+/// Random small-integer triangles and rays between small-integer points (so that rays through
+/// vertices and along edges' lines are common): whatever the half-open rule hits, the closed
+/// rule hits too, at the same `t`; the two differ only where the closed rule finds the ray on
+/// an edge's line.
+mod half_open_within_closed {
+    use super::*;
+    use hbv::geometry::{EdgeRule, PreparedRay, Triangle};
+    use proptest::prelude::*;
+
+    fn small_point() -> impl Strategy<Value = Vec3> {
+        (-3i8..=3, -3i8..=3, -3i8..=3).prop_map(|(x, y, z)| Vec3::new(x as f32, y as f32, z as f32))
+    }
+
+    proptest! {
+        #![proptest_config(crate::common::cases(256))]
+        #[test]
+        fn half_open_hits_are_closed_hits(
+            vertices in [small_point(), small_point(), small_point()],
+            from in small_point(),
+            other in small_point(),
+            aim in 0usize..7,
+            scale in prop::sample::select(vec![1.0f32, 0.1, 3.0e5, 1.0e-5]),
+        ) {
+            let [a, b, c] = vertices.map(|v| v * scale);
+            // Aimed at a vertex, an edge's midpoint, or another point.
+            let towards = [a, b, c, (a + b) * 0.5, (b + c) * 0.5, (c + a) * 0.5, other * scale][aim];
+            let from = from * scale;
+            let ray = Ray::new(from, towards - from);
+            prop_assume!(ray.is_valid());
+            let triangle = Triangle::new(a, b, c);
+            let prepared = PreparedRay::new(&ray);
+            let closed = triangle.intersect_by(&prepared, EdgeRule::Closed);
+            let half_open = triangle.intersect_by(&prepared, EdgeRule::HalfOpen);
+            if let Some(h) = half_open {
+                prop_assert_eq!(closed.map(|c| c.t), Some(h.t));
+            }
+        }
+    }
+}
