@@ -211,6 +211,50 @@ fn crossings_through_edges_and_vertices_are_counted_once() {
     }
 }
 
+/// Rays of axis-aligned and diagonal directions (shear slopes 0 and ±1, so that the exact edge
+/// signs come from exactly sheared coordinates) from points inside the terrain on its grid
+/// lines: along the grid they pass exactly through walls' edges and the top's vertices; every
+/// count is odd.
+#[test]
+fn axis_aligned_and_diagonal_rays_along_grid_lines_count_crossings_once() {
+    let n = 6;
+    let mesh = terrain(n);
+    let structures = all_hits_structures(&mesh);
+    let directions = [
+        Vec3::X,
+        -Vec3::X,
+        Vec3::Y,
+        -Vec3::Y,
+        Vec3::Z,
+        Vec3::new(1.0, 1.0, 0.0),
+        Vec3::new(-1.0, 1.0, 0.0),
+        Vec3::new(1.0, 0.0, 1.0),
+        Vec3::new(0.0, -1.0, 1.0),
+        Vec3::new(1.0, 1.0, 1.0),
+    ];
+    let mut rays = 0;
+    for i in 1..n {
+        for j in 1..n {
+            for z in [0.5f32, 0.75] {
+                let origin = Vec3::new(i as f32, j as f32, z);
+                for direction in directions {
+                    let ray = Ray::new(origin, direction);
+                    for (name, structure) in &structures {
+                        let count = structure.count_hits(&ray);
+                        assert_eq!(
+                            count % 2,
+                            1,
+                            "{name}: {count} hits from {origin} along {direction}"
+                        );
+                    }
+                    rays += 1;
+                }
+            }
+        }
+    }
+    assert_eq!(rays, 500);
+}
+
 /// Rays that only touch a surface, at a silhouette vertex or a silhouette edge of the
 /// octahedron, or that start exactly on an edge where two faces meet at an angle: a touch is a
 /// hit for the closest- and any-hit queries, at its exact `t`, in every structure. (Before the

@@ -81,6 +81,30 @@ impl ExactSum {
     }
 }
 
+/// Whether `a + b` is an f64 without rounding.
+pub(crate) fn sum_is_exact(a: f64, b: f64) -> bool {
+    two_sum(a, b).1 == 0.0
+}
+
+/// Whether `a b` is exactly the f64 `product`.
+pub(crate) fn product_is(a: f64, b: f64, product: f64) -> bool {
+    two_product(a, b) == (product, 0.0)
+}
+
+/// The exact sign of `a b − c d` for f64s (whose products neither overflow nor underflow), or
+/// `None` if one is not finite.
+pub(crate) fn difference_of_products_sign(a: f64, b: f64, c: f64, d: f64) -> Option<i8> {
+    let ((ab, ab_error), (cd, cd_error)) = (two_product(a, b), two_product(c, d));
+    if ab_error == 0.0 && cd_error == 0.0 {
+        // Both products exact (the usual case: coordinates of few significant bits).
+        return ab.partial_cmp(&cd).map(|order| order as i8);
+    }
+    let mut sum = ExactSum::new();
+    sum.add_product(a, b);
+    sum.add_product(-c, d);
+    sum.sign()
+}
+
 /// `a + b` as the rounded sum and its exact rounding error (Knuth's TwoSum; no condition on
 /// the magnitudes).
 #[inline]
@@ -91,11 +115,26 @@ fn two_sum(a: f64, b: f64) -> (f64, f64) {
     (sum, (a - a_virtual) + (b - b_virtual))
 }
 
-/// `a b` as the rounded product and its exact rounding error, by one fused multiply-add.
+/// `a b` as the rounded product and its exact rounding error (Dekker's TwoProduct: each factor
+/// split into two halves of 26 significant bits, whose products are exact; exact for
+/// `|a b| < 2^996`). A fused multiply-add would take one instruction, but the library is built
+/// for baseline x86-64, where `f64::mul_add` is a software routine ten times this cost.
 #[inline]
 fn two_product(a: f64, b: f64) -> (f64, f64) {
     let product = a * b;
-    (product, a.mul_add(b, -product))
+    let (a_high, a_low) = split(a);
+    let (b_high, b_low) = split(b);
+    let error = ((a_high * b_high - product) + a_high * b_low + a_low * b_high) + a_low * b_low;
+    (product, error)
+}
+
+/// `a` as `high + low`, each of at most 26 significant bits (Veltkamp's splitting, with the
+/// factor `2^27 + 1`).
+#[inline]
+fn split(a: f64) -> (f64, f64) {
+    let scaled = 134_217_729.0 * a;
+    let high = scaled - (scaled - a);
+    (high, a - high)
 }
 
 /// Adds `det[a, b, c]` (rows `a`, `b`, `c`), times `sign` (±1), to `sum`: six products of three
@@ -122,11 +161,50 @@ fn add_determinant(sum: &mut ExactSum, sign: f64, a: Vec3, b: Vec3, c: Vec3) {
 /// The differences are not formed (`p − o` may not be exact even in f64); by linearity in each
 /// row, `det[p − o, q − o, d] = det[p, q, d] − det[o, q, d] − det[p, o, d]`.
 pub(crate) fn orientation_sign(o: Vec3, p: Vec3, q: Vec3, d: Vec3) -> Option<i8> {
+    if !(o.is_finite() && p.is_finite() && q.is_finite() && d.is_finite()) {
+        return None;
+    }
+    orientation_sign_if_exact_in_f64(o, p, q, d)
+        .or_else(|| orientation_sign_by_expansion(o, p, q, d))
+}
+
+/// [`orientation_sign`] as a sum of 36 f64 terms kept exactly: for any f32 inputs.
+fn orientation_sign_by_expansion(o: Vec3, p: Vec3, q: Vec3, d: Vec3) -> Option<i8> {
     let mut sum = ExactSum::new();
     add_determinant(&mut sum, 1.0, p, q, d);
     add_determinant(&mut sum, -1.0, o, q, d);
     add_determinant(&mut sum, -1.0, p, o, d);
     sum.sign()
+}
+
+/// `det[p − o, q − o, d] = (p − o) · ((q − o) × d)` evaluated in f64 with every rounding
+/// error computed (`two_sum`, `two_product`): its sign if every error is zero (the value is then
+/// exact), `None` otherwise. The rays that pass exactly through an edge come mostly from inputs
+/// of few significant bits (integer or grid-aligned meshes, axis-aligned rays), for which all of
+/// it is exact: a few dozen operations instead of the expansion's thousands.
+fn orientation_sign_if_exact_in_f64(o: Vec3, p: Vec3, q: Vec3, d: Vec3) -> Option<i8> {
+    let exact_sum = |a: f64, b: f64| match two_sum(a, b) {
+        (sum, 0.0) => Some(sum),
+        _ => None,
+    };
+    let exact_product = |a: f64, b: f64| match two_product(a, b) {
+        (product, 0.0) => Some(product),
+        _ => None,
+    };
+    let (o, p, q, d) = (o.as_dvec3(), p.as_dvec3(), q.as_dvec3(), d.as_dvec3());
+    let mut a = [0.0; 3];
+    let mut b = [0.0; 3];
+    for i in 0..3 {
+        a[i] = exact_sum(p[i], -o[i])?;
+        b[i] = exact_sum(q[i], -o[i])?;
+    }
+    let mut det = 0.0;
+    for (i, j, k) in [(0, 1, 2), (1, 2, 0), (2, 0, 1)] {
+        // (b × d)_i = b_j d_k − b_k d_j, then a_i times it.
+        let cross = exact_sum(exact_product(b[j], d[k])?, -exact_product(b[k], d[j])?)?;
+        det = exact_sum(det, exact_product(a[i], cross)?)?;
+    }
+    Some((det > 0.0) as i8 - (det < 0.0) as i8)
 }
 
 /// The exact sign of `(q_i − p_i) d_k − d_i (q_k − p_k)`, for f32 points `p`, `q` and an f32
@@ -192,16 +270,17 @@ mod tests {
         for case in 0..20_000 {
             let mut coordinate =
                 |bits: u32| (next(&mut state) % (1 << bits)) as i64 - (1 << (bits - 1));
-            let o = [coordinate(20), coordinate(20), coordinate(20)];
-            let p = [coordinate(20), coordinate(20), coordinate(20)];
-            let d = [coordinate(8), coordinate(8), coordinate(8)];
+            let (wide, narrow) = if case % 4 < 2 { (20, 8) } else { (22, 20) };
+            let o = [coordinate(wide), coordinate(wide), coordinate(wide)];
+            let p = [coordinate(wide), coordinate(wide), coordinate(wide)];
+            let d = [coordinate(narrow), coordinate(narrow), coordinate(narrow)];
             // Half the cases put q exactly on the plane (o, p − o, d), then nudge it by 0 or 1.
             let q = if case % 2 == 0 {
                 let (alpha, beta) = (coordinate(3), coordinate(3));
                 let nudge = [coordinate(2).signum(), 0, 0];
                 [0, 1, 2].map(|k| o[k] + alpha * (p[k] - o[k]) + beta * d[k] + nudge[k])
             } else {
-                [coordinate(20), coordinate(20), coordinate(20)]
+                [coordinate(wide), coordinate(wide), coordinate(wide)]
             };
             if q.iter().any(|x| x.abs() >= 1 << 24) {
                 continue;
@@ -210,10 +289,72 @@ mod tests {
             zeros += (expected == 0) as u32;
             // A power-of-two scale keeps every coordinate exact and every sign.
             let scale = [1.0, 2f32.powi(-60), 2f32.powi(40)][case % 3];
-            let got = orientation_sign(vec(o, scale), vec(p, scale), vec(q, scale), vec(d, 1.0));
-            assert_eq!(got, Some(expected), "case {case}: {o:?} {p:?} {q:?} {d:?}");
+            let (o, p, q, d) = (vec(o, scale), vec(p, scale), vec(q, scale), vec(d, 1.0));
+            assert_eq!(orientation_sign(o, p, q, d), Some(expected), "case {case}");
+            assert_eq!(
+                orientation_sign_by_expansion(o, p, q, d),
+                Some(expected),
+                "case {case}"
+            );
+            if let Some(sign) = orientation_sign_if_exact_in_f64(o, p, q, d) {
+                assert_eq!(sign, expected, "case {case}");
+            }
         }
         assert!(zeros > 1_000, "the test must reach exact zeros ({zeros})");
+    }
+
+    /// An origin whose components differ by 2^40 in magnitude, and a direction whose components
+    /// differ the other way: f64 rounds in most cases, and the expansion decides.
+    #[test]
+    fn orientation_of_far_apart_magnitudes_is_decided_by_the_expansion() {
+        let mut state = 13;
+        let (mut zeros, mut by_expansion) = (0, 0);
+        for case in 0..5_000 {
+            let mut coordinate =
+                |bits: u32| (next(&mut state) % (1 << bits)) as i64 - (1 << (bits - 1));
+            let big = |x: i64| x << 40;
+            let o = [big(coordinate(16)), coordinate(16), coordinate(16)];
+            let p = [big(coordinate(16)), coordinate(16), coordinate(16)];
+            let d = [coordinate(8), big(coordinate(8)), coordinate(8)];
+            let q = if case % 2 == 0 {
+                // On the line through o and p, or nudged off it in y.
+                let alpha = coordinate(3);
+                let nudge = [0, coordinate(2).signum(), 0];
+                [0, 1, 2].map(|k| o[k] + alpha * (p[k] - o[k]) + nudge[k])
+            } else {
+                [big(coordinate(16)), coordinate(16), coordinate(16)]
+            };
+            let expected = integer_orientation(o, p, q, d).signum() as i8;
+            zeros += (expected == 0) as u32;
+            let (o, p, q, d) = (vec(o, 1.0), vec(p, 1.0), vec(q, 1.0), vec(d, 1.0));
+            assert_eq!(orientation_sign(o, p, q, d), Some(expected), "case {case}");
+            by_expansion += orientation_sign_if_exact_in_f64(o, p, q, d).is_none() as u32;
+        }
+        assert!(
+            zeros > 500 && by_expansion > 2_500,
+            "{zeros} zeros, {by_expansion} by expansion"
+        );
+    }
+
+    #[test]
+    fn difference_of_products_matches_integer_arithmetic() {
+        let mut state = 17;
+        for case in 0..20_000 {
+            let mut factor = || (next(&mut state) % (1 << 30)) as i64 - (1 << 29);
+            let (a, b, c) = (factor(), factor(), factor());
+            // Every other case has a b = c d exactly.
+            let d = if case % 2 == 0 && c != 0 && (a * b) % c == 0 {
+                (a * b) / c
+            } else {
+                factor()
+            };
+            if d.abs() >= 1 << 53 {
+                continue;
+            }
+            let expected = (a as i128 * b as i128 - c as i128 * d as i128).signum() as i8;
+            let got = difference_of_products_sign(a as f64, b as f64, c as f64, d as f64);
+            assert_eq!(got, Some(expected), "case {case}: {a} {b} {c} {d}");
+        }
     }
 
     #[test]

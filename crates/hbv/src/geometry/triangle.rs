@@ -256,9 +256,12 @@ impl Triangle {
             edge_error_f64(mc.max(ma), cx, cy, ax, ay),
             edge_error_f64(ma.max(mb), ax, ay, bx, by),
         ];
-        // Edge k runs from `first[k]` to `second[k]` (`U` is the edge p1 → p2, and so on).
-        let first = [self.p1, self.p2, self.p0];
-        let second = [self.p2, self.p0, self.p1];
+        // Edge k runs from vertex `first[k]` to `second[k]` (`U` is the edge p1 → p2, and so on).
+        let (first, second) = ([1, 2, 0], [2, 0, 1]);
+        let points = [self.p0, self.p1, self.p2];
+        let sheared = [(ax, ay), (bx, by), (cx, cy)];
+        // Whether the f64 sheared coordinates are the exactly sheared ones (found on first need).
+        let mut shears_exactly = None;
 
         let mut sign = |k: usize| -> i8 {
             let (f, e) = (f32_edges[k], bounds[k]);
@@ -272,15 +275,22 @@ impl Triangle {
                 return if value > 0.0 { 1 } else { -1 };
             }
             let f64_sign = (value > 0.0) as i8 - (value < 0.0) as i8;
+            let (p, q) = (points[first[k]], points[second[k]]);
+            let exact_sign =
+                if *shears_exactly.get_or_insert_with(|| self.shears_exactly(ray, [sx, sy])) {
+                    // `E = Qx Py − Qy Px` of exact coordinates: two products, summed exactly.
+                    let ((px, py), (qx, qy)) = (sheared[first[k]], sheared[second[k]]);
+                    exact_sign::difference_of_products_sign(qx, py, qy, px)
+                } else {
+                    Self::exact_edge_sign(ray, p, q)
+                };
             // (`None`: a coordinate is not finite after all; the f64 sign is all there is.)
-            match Self::exact_edge_sign(ray, first[k], second[k]) {
+            match exact_sign {
                 Some(0) => {
                     exact[k] = 0.0;
                     match rule {
                         EdgeRule::Closed => 0,
-                        EdgeRule::HalfOpen => {
-                            Self::moved_edge_sign(ray, first[k], second[k]).unwrap_or(0)
-                        }
+                        EdgeRule::HalfOpen => Self::moved_edge_sign(ray, p, q).unwrap_or(0),
                     }
                 }
                 Some(sign) => sign,
@@ -326,6 +336,37 @@ impl Triangle {
     fn exact_edge_sign(ray: &PreparedRay, p: Vec3, q: Vec3) -> Option<i8> {
         let (o, d, p, q) = Self::in_frame(ray, [ray.origin, ray.direction, p, q]);
         Some(exact_sign::orientation_sign(o, q, p, d)? * Self::towards_z(d))
+    }
+
+    /// Whether the f64 sheared coordinates of [`Triangle::intersect_near_edge`] are exact: the
+    /// vertex differences `P' = P − o`, the shear constants `Sx = d_kx / d_kz`, `Sy`, and
+    /// `P'_kx − Sx P'_kz`, `P'_ky − Sy P'_kz` each without rounding (checked by computing every
+    /// rounding error). True for axis-aligned rays (`Sx = Sy = 0`) and others of dyadic slopes
+    /// over coordinates of few significant bits: the usual source of rays exactly through an
+    /// edge, whose edge functions are then two products summed exactly.
+    fn shears_exactly(&self, ray: &PreparedRay, shear: [f64; 2]) -> bool {
+        let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
+        let (o, d) = (ray.origin.as_dvec3(), ray.direction.as_dvec3());
+        let [sx, sy] = shear;
+        let exact_slope = |s: f64, k: usize| exact_sign::product_is(s, d[kz], d[k]);
+        exact_slope(sx, kx)
+            && exact_slope(sy, ky)
+            && [self.p0, self.p1, self.p2].iter().all(|p| {
+                let p = p.as_dvec3();
+                let difference = |k: usize| exact_sign::sum_is_exact(p[k], -o[k]);
+                let (x, y, z) = (p[kx] - o[kx], p[ky] - o[ky], p[kz] - o[kz]);
+                // A slope of 0 (an axis-aligned ray, or one in an axis plane) shears nothing.
+                let sheared = |along: f64, s: f64| {
+                    s == 0.0
+                        || (exact_sign::product_is(s, z, s * z)
+                            && exact_sign::sum_is_exact(along, -(s * z)))
+                };
+                difference(kx)
+                    && difference(ky)
+                    && difference(kz)
+                    && sheared(x, sx)
+                    && sheared(y, sy)
+            })
     }
 
     /// The sign [`EdgeRule::HalfOpen`] gives an edge function that is exactly zero (the ray
