@@ -10,7 +10,7 @@
 //! `sweep-sah`, `median`, `lbvh`; default `binned-sah`), so that the peak resident memory after
 //! building (Linux `VmHWM`) is that builder's. Then each layout in turn is made, measured, used to
 //! trace `N` rays (default 1M, from random points of the scene's box in random directions) and
-//! dropped. With `--save`, the tree is also written as a `.hbv` file and loaded back (memory-mapped).
+//! dropped. With `--save`, the tree is also written as a `.hbv` file and loaded back.
 
 use std::time::Instant;
 

@@ -159,7 +159,7 @@ pub fn read_gltf(path: &Path) -> Result<(::gltf::Document, Vec<::gltf::buffer::D
 
 /// The bytes of a mesh file, devices refused ([`refuse_devices`]).
 fn read_mesh_file(path: &Path) -> Result<Vec<u8>, MeshError> {
-    refuse_devices(path).map_err(|e| MeshError::io(path, e))?;
+    refuse_devices(path, "a mesh file").map_err(|e| MeshError::io(path, e))?;
     std::fs::read(path).map_err(|e| MeshError::io(path, e))
 }
 
@@ -173,8 +173,9 @@ fn folder_of(path: &Path) -> &Path {
 
 /// Refuses a path that names a device or a socket (through any symlinks): `/dev/zero` or
 /// `/dev/urandom` would be read forever. Regular files and pipes (`<(...)`, FIFOs, which end
-/// when their writer closes) are read.
-fn refuse_devices(path: &Path) -> std::io::Result<()> {
+/// when their writer closes) are read. `expected` names what the file should have been
+/// (`a mesh file`), for the message.
+pub(crate) fn refuse_devices(path: &Path, expected: &str) -> std::io::Result<()> {
     #[cfg(unix)]
     {
         use std::os::unix::fs::FileTypeExt;
@@ -182,11 +183,11 @@ fn refuse_devices(path: &Path) -> std::io::Result<()> {
         if kind.is_char_device() || kind.is_block_device() || kind.is_socket() {
             return Err(std::io::Error::new(
                 std::io::ErrorKind::InvalidInput,
-                "a device or a socket, not a mesh file",
+                format!("a device or a socket, not {expected}"),
             ));
         }
     }
-    let _ = path;
+    let _ = (path, expected);
     Ok(())
 }
 

@@ -31,8 +31,9 @@ pub struct BvhFile {
 }
 
 impl BvhFile {
-    /// Loads and checks the file at `path`; files of `read::MAP_AT_LEAST` (1 MiB) bytes or more are
-    /// memory-mapped rather than read.
+    /// Reads and checks the file at `path`. It is read into memory whole (not memory-mapped, so
+    /// a file truncated or rewritten while it loads is an error, never a crash); a device or a
+    /// socket is refused.
     pub fn load(path: impl AsRef<Path>) -> Result<Self, BvhFileError> {
         read::load(path.as_ref())
     }
