@@ -3,6 +3,7 @@
 
 pub mod atomic_write;
 pub mod hit_file;
+mod npy_header;
 pub mod plot;
 pub mod ray_file;
 pub mod ray_sets;

@@ -9,10 +9,11 @@ use std::path::{Path, PathBuf};
 use glam::Vec3;
 use hbv::geometry::Ray;
 use ndarray::ArrayD;
-use ndarray_npy::npy::header::Header;
 use ndarray_npy::{ReadNpyError, ReadNpyExt, ReadNpzError, ReadableElement};
 use zip::result::ZipError;
 use zip::ZipArchive;
+
+use crate::npy_header::read_npy_header;
 
 /// An error reading an `.npz` ray, hit or occlusion file: the file, the member if one is to
 /// blame, and why.
@@ -255,8 +256,8 @@ impl Archive {
             return Err(self.missing(name));
         }
         let bytes = self.member_bytes(name)?;
-        let header = Header::from_reader(&mut bytes.as_slice())
-            .map_err(|e| self.error(name, Reason::Invalid(format!("not a .npy array: {e}"))))?;
+        let header =
+            read_npy_header(&bytes).map_err(|why| self.error(name, Reason::Invalid(why)))?;
         // Every element takes at least one byte: a header declaring more elements than there
         // are bytes lies, and must not make the reader allocate what it declares.
         let declared = header
@@ -276,7 +277,21 @@ impl Archive {
         match ArrayD::<T>::read_npy(bytes.as_slice()) {
             Ok(a) => Ok(Ok(a)),
             Err(ReadNpyError::WrongDescriptor(d)) => Ok(Err(dtype_str(d.to_string()))),
-            Err(e) => Err(self.error(name, Reason::Invalid(format!("cannot read: {e}")))),
+            Err(e) => {
+                let shape = shape_str(&header.shape);
+                let why = match e {
+                    ReadNpyError::MissingData => {
+                        format!(
+                            "the member ends before the data of shape {shape} its header declares"
+                        )
+                    }
+                    ReadNpyError::ExtraBytes(n) => {
+                        format!("{n} bytes follow the data of shape {shape} its header declares")
+                    }
+                    e => format!("cannot read: {e}"),
+                };
+                Err(self.error(name, Reason::Invalid(why)))
+            }
         }
     }
 

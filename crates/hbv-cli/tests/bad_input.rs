@@ -97,8 +97,14 @@ fn one_error_line(output: &Output) -> String {
 
 /// A `.npy` member: header text as NumPy writes it (padded to 64 bytes), then `data`.
 fn npy(descr: &str, shape: &str, data: &[u8]) -> Vec<u8> {
-    let mut header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
-    while (10 + header.len() + 1) % 64 != 0 {
+    let header = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
+    npy_with_header(&header, data)
+}
+
+/// A `.npy` member whose header holds `header` (a dict literal, or not), padded as NumPy pads it.
+fn npy_with_header(header: &str, data: &[u8]) -> Vec<u8> {
+    let mut header = header.to_owned();
+    while !(10 + header.len() + 1).is_multiple_of(64) {
         header.push(' ');
     }
     header.push('\n');
@@ -303,12 +309,34 @@ fn bad_ray_files_are_one_line_naming_member_and_reason() {
             // A header declaring more rows than its data holds, by a little.
             "short.npz",
             npz(&[("origins.npy", npy("<f4", "(9, 3)", &f32s(&[0.0; 3]))), ("directions.npy", dirs())]),
-            "short.npz: origins: cannot read:",
+            "short.npz: origins: the member ends before the data of shape (9, 3) its header declares",
         ),
         (
             "garbage.npz",
-            npz(&[("origins.npy", b"\x93NUMPY garbage".to_vec()), ("directions.npy", dirs())]),
-            "garbage.npz: origins: not a .npy array:",
+            npz(&[("origins.npy", b"PK garbage".to_vec()), ("directions.npy", dirs())]),
+            "garbage.npz: origins: not a .npy array (it does not start with the .npy magic string)",
+        ),
+        (
+            // A header cut inside its dictionary: the parser's six-line syntax diagram before.
+            "dict.npz",
+            npz(&[("origins.npy", npy_with_header("{'descr': '<f4', 'fortran_", &[])), ("directions.npy", dirs())]),
+            "dict.npz: origins: the .npy header is not a Python dict literal",
+        ),
+        (
+            // A header length of 65,535 over a 128-byte header: "failed to fill whole buffer" before.
+            "headerlen.npz",
+            npz(&[("origins.npy", { let mut m = good_origins(); m[8..10].copy_from_slice(&[0xff, 0xff]); m }), ("directions.npy", dirs())]),
+            "headerlen.npz: origins: the .npy header says it is 65535 bytes long, longer than the member (130 bytes after its 10-byte prefix)",
+        ),
+        (
+            "version.npz",
+            npz(&[("origins.npy", { let mut m = good_origins(); m[6] = 9; m }), ("directions.npy", dirs())]),
+            "version.npz: origins: .npy format version 9.0 is not supported (1.0, 2.0 and 3.0 are)",
+        ),
+        (
+            "negative.npz",
+            npz(&[("origins.npy", npy("<f4", "(-1, 3)", &[])), ("directions.npy", dirs())]),
+            "negative.npz: origins: the .npy header's 'shape' is (-1, 3), expected a tuple of non-negative integers",
         ),
     ];
     for (name, bytes, reason) in cases {
