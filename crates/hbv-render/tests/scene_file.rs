@@ -229,3 +229,43 @@ fn the_example_scenes_load_when_shared_scenes_exist() {
         assert!(!scene.lights.is_empty(), "{name}");
     }
 }
+
+/// A scene saved as Latin-1: the first byte that is not UTF-8 is named by line, column and
+/// offset, once (it was "stream did not contain valid UTF-8" twice, with no place).
+#[test]
+fn a_file_that_is_not_utf8_names_its_first_bad_byte() {
+    let text = good_with("[[light]]", "# caf\u{e9}\n[[light]]");
+    let bad_line = line_of(&text, "# caf");
+    let at = text.find('\u{e9}').unwrap();
+    let mut bytes = text.into_bytes();
+    bytes.splice(at..at + 2, [0xe9]); // é in Latin-1
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("latin1.toml");
+    std::fs::write(&path, &bytes).unwrap();
+    let e = load_scene(&path).unwrap_err();
+    let message = e.to_string();
+    assert!(matches!(e, SceneError::NotUtf8 { .. }), "{message}");
+    assert_eq!(e.line(), Some(bad_line), "{message}");
+    let expected = format!(
+        "latin1.toml: line {bad_line}, column 6 (byte offset {at}): not UTF-8 text (byte 0xE9)"
+    );
+    assert!(message.contains(&expected), "{message}");
+    assert_eq!(message.matches("UTF-8").count(), 2, "{message}");
+    assert!(!message.contains('\n'), "{message}");
+}
+
+/// `/dev/zero` given as a scene was read until memory ran out.
+#[cfg(unix)]
+#[test]
+fn a_device_is_refused_not_read_for_ever() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("zero.toml");
+    std::os::unix::fs::symlink("/dev/zero", &path).unwrap();
+    let e = load_scene(&path).unwrap_err();
+    assert!(matches!(e, SceneError::Io { .. }), "{e}");
+    assert!(
+        e.to_string()
+            .ends_with("zero.toml: cannot read: a device or a socket, not a scene file"),
+        "{e}"
+    );
+}

@@ -15,6 +15,21 @@ pub enum SceneError {
         // (`{:#}`) printed it twice.
         error: std::io::Error,
     },
+    /// The file is not UTF-8 text (TOML is): the first byte that is not, and where it is.
+    #[error(
+        "{}: line {line}, column {column} (byte offset {offset}): not UTF-8 text (byte \
+         0x{byte:02X}); scene files must be saved as UTF-8",
+        file.display()
+    )]
+    NotUtf8 {
+        file: PathBuf,
+        line: usize,
+        /// 1-based, in bytes.
+        column: usize,
+        /// 0-based, from the start of the file.
+        offset: usize,
+        byte: u8,
+    },
     #[error("{}: line {line}: {key}: {reason}", file.display())]
     Invalid {
         file: PathBuf,
@@ -48,14 +63,19 @@ impl SceneError {
     pub fn line(&self) -> Option<usize> {
         match self {
             SceneError::Io { .. } | SceneError::Gltf { .. } | SceneError::GltfFile(_) => None,
-            SceneError::Invalid { line, .. } | SceneError::Mesh { line, .. } => Some(*line),
+            SceneError::Invalid { line, .. }
+            | SceneError::Mesh { line, .. }
+            | SceneError::NotUtf8 { line, .. } => Some(*line),
         }
     }
 
     /// The key the error is about, for errors about the file's content.
     pub fn key(&self) -> Option<&str> {
         match self {
-            SceneError::Io { .. } | SceneError::Gltf { .. } | SceneError::GltfFile(_) => None,
+            SceneError::Io { .. }
+            | SceneError::Gltf { .. }
+            | SceneError::GltfFile(_)
+            | SceneError::NotUtf8 { .. } => None,
             SceneError::Invalid { key, .. } | SceneError::Mesh { key, .. } => Some(key),
         }
     }

@@ -167,13 +167,55 @@ pub fn load_scene(path: impl AsRef<Path>) -> Result<Scene, SceneError> {
     if matches!(ext.as_deref(), Some("gltf") | Some("glb")) {
         return super::load_gltf_scene(path);
     }
-    let source = std::fs::read_to_string(path).map_err(|error| SceneError::Io {
+    let io_error = |error| SceneError::Io {
         file: path.to_path_buf(),
         error,
-    })?;
+    };
+    refuse_devices(path).map_err(io_error)?;
+    let bytes = std::fs::read(path).map_err(io_error)?;
+    let source = utf8_text(bytes, path)?;
     let folder = path.parent().unwrap_or(Path::new("."));
     parse_scene(&source, path, &|mesh: &Path| {
         TriangleMesh::load(folder.join(mesh))
+    })
+}
+
+/// Refuses a device or a socket (through links), which would be read for ever (`/dev/zero`), as
+/// the mesh loader does; pipes (`<(...)`) are read.
+fn refuse_devices(path: &Path) -> std::io::Result<()> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        let kind = std::fs::metadata(path)?.file_type();
+        if kind.is_char_device() || kind.is_block_device() || kind.is_socket() {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                "a device or a socket, not a scene file",
+            ));
+        }
+    }
+    let _ = path;
+    Ok(())
+}
+
+/// `bytes` as text, or the place of the first byte that is not UTF-8. (`read_to_string` said
+/// only "stream did not contain valid UTF-8", with no place, and the report repeated it.)
+fn utf8_text(bytes: Vec<u8>, path: &Path) -> Result<String, SceneError> {
+    String::from_utf8(bytes).map_err(|e| {
+        let bytes = e.as_bytes();
+        let offset = e.utf8_error().valid_up_to();
+        let before = &bytes[..offset];
+        let line_start = before
+            .iter()
+            .rposition(|&b| b == b'\n')
+            .map_or(0, |i| i + 1);
+        SceneError::NotUtf8 {
+            file: path.to_path_buf(),
+            line: before.iter().filter(|&&b| b == b'\n').count() + 1,
+            column: offset - line_start + 1,
+            offset,
+            byte: bytes[offset],
+        }
     })
 }
 
