@@ -549,6 +549,80 @@ fn absurd_thread_and_ray_counts_are_one_line() {
     }
 }
 
+/// Every numeric flag of `hbv experiment` is checked when the arguments are read, naming the
+/// flag and what it takes. A NaN displacement was blamed on the mesh ("triangle 0 has a
+/// coordinate that is not finite") after building its trees; `--lambda 0` and NaN ran. Negative
+/// numbers are read as values (not as unknown flags) and refused for what they are.
+#[test]
+fn experiment_flags_are_checked_before_any_work() {
+    let cases: [(&[&str], &str); 13] = [
+        (
+            &["dynamic", "--displacement", "nan"],
+            "expected a finite number from 0 to 10, not NaN",
+        ),
+        (
+            &["dynamic", "--displacement", "inf"],
+            "expected a finite number from 0 to 10, not inf",
+        ),
+        (
+            &["dynamic", "--displacement", "-0.1"],
+            "expected a finite number from 0 to 10",
+        ),
+        (
+            &["dynamic", "--displacement", "1e30"],
+            "expected a finite number from 0 to 10",
+        ),
+        (
+            &["dynamic", "--seed", "-1"],
+            "expected a whole number from 0 to 18446744073709551615",
+        ),
+        (
+            &["seed-claims", "--lambda", "0"],
+            "expected a finite number from 0.001 to 1024",
+        ),
+        (
+            &["seed-claims", "--lambda", "NaN"],
+            "expected a finite number from 0.001 to 1024, not NaN",
+        ),
+        (
+            &["seed-claims", "--lambda", "1e300"],
+            "expected a finite number from 0.001 to 1024",
+        ),
+        (
+            &["seed-claims", "--lambda", "-2"],
+            "expected a finite number from 0.001 to 1024",
+        ),
+        (
+            &["seed-claims", "--rays", "0"],
+            "expected 1 to 134217728 rays per set",
+        ),
+        (
+            &["seed-claims", "--rays", "-5"],
+            "expected 1 to 134217728 rays per set",
+        ),
+        (&["seed-claims", "--repeat", "-1"], "-1 is not in 1..="),
+        (
+            &["seed-claims", "--ray-seed", "-3"],
+            "expected a whole number from 0 to",
+        ),
+    ];
+    for (args, reason) in cases {
+        let mut all = vec!["experiment"];
+        all.extend(args);
+        let output = hbv(&all);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{args:?}: {stderr}");
+        let flag = args[1];
+        let value = args[2];
+        assert!(
+            stderr.starts_with(&format!("error: invalid value '{value}' for '{flag} <")),
+            "{args:?}: {stderr}"
+        );
+        assert!(stderr.contains(reason), "{args:?}: {stderr}");
+        assert!(output.stdout.is_empty(), "{args:?} ran");
+    }
+}
+
 #[cfg(unix)]
 #[test]
 fn read_only_output_folder_is_one_line_unless_privileged() {

@@ -23,6 +23,7 @@ use serde::Serialize;
 use hbv::grid::{GridConfig, UniformGrid};
 
 use super::build_args::{load_mesh, thread_pool, AccelName, BuildArgs, BuilderName, LayoutName};
+use super::flag_values::ray_count;
 
 #[derive(Args)]
 pub struct BenchArgs {
@@ -304,20 +305,6 @@ fn write_ray_sets(
         println!("wrote {} ({} rays)", path.display(), rays.len());
     }
     Ok(())
-}
-
-/// The most rays per set `--rays` may ask for: three sets of them take 13 GB.
-const MAX_RAYS: usize = 1 << 27;
-
-/// `--rays N`: at least 1 and at most [`MAX_RAYS`], refused before anything is allocated.
-fn ray_count(arg: &str) -> Result<usize, String> {
-    let n: usize = arg
-        .parse()
-        .map_err(|e| format!("not a number of rays: {e}"))?;
-    if !(1..=MAX_RAYS).contains(&n) {
-        return Err(format!("expected 1 to {MAX_RAYS} rays per set"));
-    }
-    Ok(n)
 }
 
 /// A pool of one thread, and one of `threads` (0: every core) unless that is also one.

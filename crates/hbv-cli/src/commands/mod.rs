@@ -5,6 +5,7 @@ pub mod build;
 pub mod build_args;
 pub mod build_compare;
 pub mod experiment;
+pub mod flag_values;
 pub mod info;
 pub mod render;
 pub mod trace;

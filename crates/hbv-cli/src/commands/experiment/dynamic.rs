@@ -8,6 +8,7 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use anyhow::Context;
 use clap::Args;
 use hbv::bvh::build::{BinnedSahBuilder, Builder, InsertionBuilder};
 use hbv::bvh::dynamic::{DynamicBvh, DynamicConfig};
@@ -21,16 +22,17 @@ use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
 
 use crate::commands::build_args::load_mesh;
+use crate::commands::flag_values::{displacement, seed};
 
 #[derive(Args)]
 pub struct DynamicArgs {
     /// Mesh file (.obj, .ply, .gltf, .glb, .hbv); the built-in scene when omitted.
     pub mesh: Option<PathBuf>,
-    /// Largest displacement of a moved triangle, as a fraction of the scene's diagonal.
-    #[arg(long, default_value_t = 0.05)]
+    /// Largest displacement of a moved triangle, as a fraction of the scene's diagonal (0 to 10).
+    #[arg(long, default_value_t = 0.05, value_parser = displacement, allow_negative_numbers = true)]
     pub displacement: f32,
     /// Seed of the choice of triangles and of their displacements.
-    #[arg(long, default_value_t = 0x5eed)]
+    #[arg(long, default_value_t = 0x5eed, value_parser = seed, allow_negative_numbers = true)]
     pub seed: u64,
     /// Print one JSON object instead of a table.
     #[arg(long)]
@@ -254,7 +256,11 @@ fn displace(
         .collect();
     let start = Instant::now();
     for &(p, t) in &moves {
-        bvh.set_triangle(p, t)?;
+        // A mesh near the limits of f32 can leave them when moved: say so, rather than blame
+        // the mesh's triangle alone.
+        bvh.set_triangle(p, t).with_context(|| {
+            format!("moving triangle {p} by up to {reach} (--displacement) leaves f32's range")
+        })?;
     }
     match update {
         Update::Refit => bvh.refit(),

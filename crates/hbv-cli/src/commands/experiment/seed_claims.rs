@@ -34,6 +34,7 @@ use hbv_cli::ray_sets::{camera_image_size, primary_rays, secondary_rays, RaySet,
 use serde::Serialize;
 
 use crate::commands::build_args::load_mesh;
+use crate::commands::flag_values::{grid_density, ray_count, seed};
 
 #[derive(Args)]
 pub struct SeedClaimsArgs {
@@ -41,16 +42,26 @@ pub struct SeedClaimsArgs {
     /// ../shared/scenes/*.ply when that folder exists.
     pub meshes: Vec<PathBuf>,
     /// Camera rays (a ⌈√N⌉-wide image); the secondary sets have one ray per camera hit.
-    #[arg(long, default_value_t = 1 << 18)]
+    #[arg(long, default_value_t = 1 << 18, value_parser = ray_count, allow_negative_numbers = true)]
     pub rays: usize,
     /// Timed rounds after one warm-up round; the median is reported.
-    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(
+        long,
+        default_value_t = 3,
+        value_parser = clap::value_parser!(u32).range(1..),
+        allow_negative_numbers = true
+    )]
     pub repeat: u32,
     /// Seed of the diffuse bounces and the random shadow rays.
-    #[arg(long = "ray-seed", default_value_t = 1)]
+    #[arg(long = "ray-seed", default_value_t = 1, value_parser = seed, allow_negative_numbers = true)]
     pub ray_seed: u64,
-    /// Grid density λ (λ · N^(1/3) cells along the longest axis).
-    #[arg(long, default_value_t = GridConfig::default().lambda)]
+    /// Grid density λ (λ · N^(1/3) cells along the longest axis; 0.001 to 1024).
+    #[arg(
+        long,
+        default_value_t = GridConfig::default().lambda,
+        value_parser = grid_density,
+        allow_negative_numbers = true
+    )]
     pub lambda: f64,
     /// Print one JSON array (one object per mesh) instead of tables.
     #[arg(long)]
