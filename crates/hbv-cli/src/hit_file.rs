@@ -1,15 +1,14 @@
 //! Hit files (closest hits: `hit`, `t`, `prim`, `u`, `v`) and occlusion files (`occluded`), as
 //! uncompressed `.npz` archives that `numpy.load` reads (see `shared/RAYS.md`).
 
-use std::fs::File;
 use std::io;
 use std::path::Path;
 
 use hbv::Hit;
 use ndarray::Array1;
-use ndarray_npy::{NpzWriter, WritableElement};
 
 use crate::atomic_write::write_atomically;
+use crate::npz_writer::NpzStream;
 use crate::ray_file::{Archive, RayFileError};
 
 /// Writes closest hits to `path`, replacing it atomically: members `hit` (bool), `t` (float32,
@@ -27,14 +26,13 @@ pub fn write_hits(path: &Path, hits: &[Option<Hit>]) -> io::Result<()> {
     let u = column(|h| h.u, 0.0);
     let v = column(|h| h.v, 0.0);
     write_atomically(path, |file| {
-        let mut npz = NpzWriter::new(file);
-        add(&mut npz, "hit", &hit)?;
-        add(&mut npz, "t", &t)?;
-        add(&mut npz, "prim", &prim)?;
-        add(&mut npz, "u", &u)?;
-        add(&mut npz, "v", &v)?;
-        npz.finish().map_err(io::Error::other)?;
-        Ok(())
+        let mut npz = NpzStream::new(file);
+        npz.add("hit", &hit)?;
+        npz.add("t", &t)?;
+        npz.add("prim", &prim)?;
+        npz.add("u", &u)?;
+        npz.add("v", &v)?;
+        npz.finish()
     })
 }
 
@@ -42,21 +40,10 @@ pub fn write_hits(path: &Path, hits: &[Option<Hit>]) -> io::Result<()> {
 pub fn write_occlusion(path: &Path, occluded: &[bool]) -> io::Result<()> {
     let occluded = Array1::from(occluded.to_vec());
     write_atomically(path, |file| {
-        let mut npz = NpzWriter::new(file);
-        add(&mut npz, "occluded", &occluded)?;
-        npz.finish().map_err(io::Error::other)?;
-        Ok(())
+        let mut npz = NpzStream::new(file);
+        npz.add("occluded", &occluded)?;
+        npz.finish()
     })
-}
-
-/// Adds member `name` (stored as `name.npy`, as NumPy does).
-fn add<T: WritableElement>(
-    npz: &mut NpzWriter<&mut File>,
-    name: &str,
-    array: &Array1<T>,
-) -> io::Result<()> {
-    npz.add_array(name, array)
-        .map_err(|e| io::Error::other(format!("member {name}: {e}")))
 }
 
 /// Reads a hit file written by [`write_hits`] (or by NumPy in the same format).

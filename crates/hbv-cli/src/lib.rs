@@ -4,6 +4,7 @@
 pub mod atomic_write;
 pub mod hit_file;
 mod npy_header;
+mod npz_writer;
 pub mod plot;
 pub mod ray_file;
 pub mod ray_sets;

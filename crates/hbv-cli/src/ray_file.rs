@@ -14,6 +14,7 @@ use zip::result::ZipError;
 use zip::ZipArchive;
 
 use crate::npy_header::read_npy_header;
+use crate::npz_writer::NpzStream;
 
 /// An error reading an `.npz` ray, hit or occlusion file: the file, the member if one is to
 /// blame, and why.
@@ -472,13 +473,11 @@ pub fn write_rays(path: &Path, rays: &[Ray]) -> io::Result<()> {
     let tmin: Array1<f32> = rays.iter().map(|r| r.tmin).collect();
     let tmax: Array1<f32> = rays.iter().map(|r| r.tmax).collect();
     crate::atomic_write::write_atomically(path, |file| {
-        let mut npz = ndarray_npy::NpzWriter::new(file);
-        let err = io::Error::other;
-        npz.add_array("origins", &origins).map_err(err)?;
-        npz.add_array("directions", &directions).map_err(err)?;
-        npz.add_array("tmin", &tmin).map_err(err)?;
-        npz.add_array("tmax", &tmax).map_err(err)?;
-        npz.finish().map_err(err)?;
-        Ok(())
+        let mut npz = NpzStream::new(file);
+        npz.add("origins", &origins)?;
+        npz.add("directions", &directions)?;
+        npz.add("tmin", &tmin)?;
+        npz.add("tmax", &tmax)?;
+        npz.finish()
     })
 }

@@ -526,6 +526,56 @@ fn devices_are_written_into_and_links_through() {
     assert_eq!(hit_file::read_hits(&target).unwrap().len(), 2);
 }
 
+/// A full disk (`/dev/full`) is reported once, with its reason: the zip crate printed "ZipWriter
+/// drop failed: Io(Os { code: 28, ... })" before hbv's line, which said only "zip file error: i/o
+/// error".
+#[cfg(unix)]
+#[test]
+fn a_full_disk_is_one_line_with_its_reason() {
+    use std::os::unix::fs::FileTypeExt;
+    let full = Path::new("/dev/full");
+    if !std::fs::metadata(full).is_ok_and(|m| m.file_type().is_char_device()) {
+        return; // not Linux
+    }
+    let s = Scene::new();
+    let line = one_error_line(&trace_to(&s, full, false));
+    assert!(
+        line.ends_with(
+            "cannot write hits: cannot write /dev/full: writing failed: \
+             No space left on device (os error 28)"
+        ),
+        "{line}"
+    );
+}
+
+/// A named pipe is written as a stream (it failed with "Illegal seek", after the zip crate's
+/// own message): what the reader gets is the whole hit file.
+#[cfg(unix)]
+#[test]
+fn a_named_pipe_gets_the_whole_hit_file() {
+    let s = Scene::new();
+    let fifo = s.path("hits.fifo");
+    let made = Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|status| status.success()) {
+        return; // no mkfifo
+    }
+    let reader = {
+        let fifo = fifo.clone();
+        std::thread::spawn(move || std::fs::read(fifo).unwrap())
+    };
+    let output = trace_to(&s, &fifo, false);
+    assert!(
+        output.status.success(),
+        "{}",
+        String::from_utf8_lossy(&output.stderr)
+    );
+    let bytes = reader.join().unwrap();
+    let copy = s.write("copy.npz", &bytes);
+    let hits = hit_file::read_hits(&copy).unwrap();
+    assert_eq!(hits.len(), 2);
+    assert!(hits[0].is_some() && hits[1].is_none());
+}
+
 /// Thread and ray counts past what any machine uses are refused at once (tens of thousands of
 /// threads took minutes to start; `bench --rays 2^64 - 1` overflowed an allocation).
 #[test]
