@@ -120,10 +120,22 @@ impl Drop for Staged {
     }
 }
 
-/// [`write_atomically`] up to the rename: the file written to its temporary file and flushed
-/// (or, for a device, pipe or socket, written in place).
-fn stage(path: &Path, write: impl FnOnce(&mut File) -> io::Result<()>) -> io::Result<Staged> {
-    let path = &through_links(path);
+/// Where [`write_atomically`] would write `path`: in place (a device, pipe or socket), or
+/// through a temporary file in a folder.
+enum Target {
+    InPlace,
+    Replace { name: OsString, dir: PathBuf },
+}
+
+/// Checks what [`write_atomically`] checks before writing anything, so that a command can
+/// refuse an output path before its work rather than after: `path` (through links) is not a
+/// directory, and its folder exists and is one. The errors are the ones the write would give.
+pub fn check_writable(path: &Path) -> io::Result<()> {
+    target(&through_links(path)).map(|_| ())
+}
+
+/// Where `path` (links already followed) is to be written, or why it cannot be.
+fn target(path: &Path) -> io::Result<Target> {
     let fail = |e: io::Error, what: &str| {
         io::Error::new(
             e.kind(),
@@ -137,18 +149,7 @@ fn stage(path: &Path, write: impl FnOnce(&mut File) -> io::Result<()>) -> io::Re
                 format!("cannot write {}: it is a directory", path.display()),
             ))
         }
-        Ok(m) if !m.is_file() => {
-            let mut file = OpenOptions::new()
-                .write(true)
-                .open(path)
-                .map_err(|e| fail(e, "cannot open it"))?;
-            write(&mut file).map_err(|e| fail(e, "writing failed"))?;
-            return Ok(Staged {
-                path: path.clone(),
-                dir: PathBuf::new(),
-                tmp: None,
-            });
-        }
+        Ok(m) if !m.is_file() => return Ok(Target::InPlace),
         _ => {}
     }
     let name = path.file_name().ok_or_else(|| {
@@ -162,36 +163,59 @@ fn stage(path: &Path, write: impl FnOnce(&mut File) -> io::Result<()>) -> io::Re
         _ => Path::new("."),
     };
     match fs::metadata(dir) {
-        Ok(m) if m.is_dir() => {}
-        Ok(_) => {
-            return Err(io::Error::new(
-                io::ErrorKind::NotADirectory,
-                format!(
-                    "cannot write {}: {} is not a directory",
-                    path.display(),
-                    dir.display()
-                ),
-            ))
-        }
-        Err(e) if e.kind() == io::ErrorKind::NotFound => {
-            return Err(io::Error::new(
-                io::ErrorKind::NotFound,
-                format!(
-                    "cannot write {}: directory {} does not exist",
-                    path.display(),
-                    dir.display()
-                ),
-            ))
-        }
-        Err(e) => {
-            return Err(fail(
-                e,
-                &format!("cannot access directory {}", dir.display()),
-            ))
-        }
+        Ok(m) if m.is_dir() => Ok(Target::Replace {
+            name: name.to_owned(),
+            dir: dir.to_path_buf(),
+        }),
+        Ok(_) => Err(io::Error::new(
+            io::ErrorKind::NotADirectory,
+            format!(
+                "cannot write {}: {} is not a directory",
+                path.display(),
+                dir.display()
+            ),
+        )),
+        Err(e) if e.kind() == io::ErrorKind::NotFound => Err(io::Error::new(
+            io::ErrorKind::NotFound,
+            format!(
+                "cannot write {}: directory {} does not exist",
+                path.display(),
+                dir.display()
+            ),
+        )),
+        Err(e) => Err(fail(
+            e,
+            &format!("cannot access directory {}", dir.display()),
+        )),
     }
+}
 
-    let (tmp_path, mut file) = create_temporary(dir, name).map_err(|e| {
+/// [`write_atomically`] up to the rename: the file written to its temporary file and flushed
+/// (or, for a device, pipe or socket, written in place).
+fn stage(path: &Path, write: impl FnOnce(&mut File) -> io::Result<()>) -> io::Result<Staged> {
+    let path = &through_links(path);
+    let fail = |e: io::Error, what: &str| {
+        io::Error::new(
+            e.kind(),
+            format!("cannot write {}: {what}: {e}", path.display()),
+        )
+    };
+    let (name, dir) = match target(path)? {
+        Target::InPlace => {
+            let mut file = OpenOptions::new()
+                .write(true)
+                .open(path)
+                .map_err(|e| fail(e, "cannot open it"))?;
+            write(&mut file).map_err(|e| fail(e, "writing failed"))?;
+            return Ok(Staged {
+                path: path.clone(),
+                dir: PathBuf::new(),
+                tmp: None,
+            });
+        }
+        Target::Replace { name, dir } => (name, dir),
+    };
+    let (tmp_path, mut file) = create_temporary(&dir, &name).map_err(|e| {
         fail(
             e,
             &format!("cannot create a temporary file in {}", dir.display()),
@@ -201,7 +225,7 @@ fn stage(path: &Path, write: impl FnOnce(&mut File) -> io::Result<()>) -> io::Re
     // From here the staged file removes its temporary file if it is dropped uncommitted.
     let staged = Staged {
         path: path.clone(),
-        dir: dir.to_path_buf(),
+        dir,
         tmp: Some(tmp_path),
     };
     write(&mut file)

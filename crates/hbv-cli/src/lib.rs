@@ -5,6 +5,7 @@ pub mod atomic_write;
 pub mod hit_file;
 mod npy_header;
 mod npz_writer;
+pub mod output_check;
 pub mod plot;
 pub mod ray_file;
 pub mod ray_sets;

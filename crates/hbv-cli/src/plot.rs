@@ -1,10 +1,14 @@
 //! Charts for reports: predicted against measured cost.
 
+use std::io::Write;
 use std::path::Path;
 
 use anyhow::Context;
+use hbv_render::image_output::Rgb8Image;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
+
+use crate::atomic_write::write_atomically;
 
 /// DejaVu Sans (Bitstream Vera licence, `assets/DejaVuSans.LICENSE`), embedded so that charts
 /// render the same on every machine, with or without system fonts.
@@ -23,8 +27,16 @@ pub struct Series {
     pub points: Vec<LabelledPoint>,
 }
 
-/// Draws `series` as a scatter chart with the line `y = x`, as a PNG at `path` (written through
-/// a temporary file, then renamed).
+/// Pixels of a chart.
+const SIZE: (u32, u32) = (1000, 750);
+
+/// Draws `series` as a scatter chart with the line `y = x`, as a PNG at `path`, written
+/// atomically ([`write_atomically`]: a device or a pipe is written into, a link through).
+///
+/// The chart is drawn into memory and encoded there: the drawing library wrote its own file,
+/// beside `path` under a fixed name (`x.tmp.png`, replacing any file of that name, left behind
+/// on failure) that was then renamed over `path`, whatever it was, and its errors were debug
+/// text. Callers check `path` before their work ([`crate::output_check::check_output`]).
 pub fn predicted_vs_measured(
     path: &Path,
     title: &str,
@@ -36,9 +48,9 @@ pub fn predicted_vs_measured(
         .map_err(|_| anyhow::anyhow!("cannot load the embedded font"))?;
     let all = series.iter().flat_map(|s| s.points.iter());
     let max = all.map(|p| p.x.max(p.y)).fold(1.0f64, f64::max) * 1.1;
-    let tmp = path.with_extension("tmp.png");
+    let mut pixels = vec![0u8; SIZE.0 as usize * SIZE.1 as usize * 3];
     {
-        let root = BitMapBackend::new(&tmp, (1000, 750)).into_drawing_area();
+        let root = BitMapBackend::with_buffer(&mut pixels, SIZE).into_drawing_area();
         root.fill(&WHITE)?;
         let mut chart = ChartBuilder::on(&root)
             .caption(title, ("sans-serif", 24))
@@ -81,6 +93,12 @@ pub fn predicted_vs_measured(
             .draw()?;
         root.present()?;
     }
-    std::fs::rename(&tmp, path).with_context(|| format!("cannot write {}", path.display()))?;
+    let png = Rgb8Image {
+        width: SIZE.0,
+        height: SIZE.1,
+        pixels,
+    }
+    .to_png()?;
+    write_atomically(path, |file| file.write_all(&png)).context("cannot write the plot")?;
     Ok(())
 }

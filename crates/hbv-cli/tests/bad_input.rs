@@ -576,6 +576,80 @@ fn a_named_pipe_gets_the_whole_hit_file() {
     assert!(hits[0].is_some() && hits[1].is_none());
 }
 
+/// Plots, images and ray sets that cannot be written are refused before the work, in one line:
+/// `build-compare --plot no/such/x.svg` measured for minutes, then failed with the drawing
+/// library's debug text ("backend error: Drawing backend error: ..."); `render -o x.jpg` wrote a
+/// PNG named `.jpg`.
+#[test]
+fn outputs_are_refused_before_any_work() {
+    let s = Scene::new();
+    let before = s.files();
+    let at = |name: &str| s.path(name).to_str().unwrap().to_owned();
+    let mesh = at("tetra.obj");
+    let cases: [(Vec<String>, String); 6] = [
+        (
+            vec![
+                "build-compare".into(),
+                mesh.clone(),
+                "--plot".into(),
+                at("no/such/cost.png"),
+            ],
+            format!(
+                "cannot write the plot: cannot write {}: directory {} does not exist",
+                at("no/such/cost.png"),
+                at("no/such")
+            ),
+        ),
+        (
+            vec![
+                "build-compare".into(),
+                mesh.clone(),
+                "--plot".into(),
+                at("cost.svg"),
+            ],
+            format!(
+                "cannot write the plot: cannot write {}: it is written as PNG, so its name \
+                 must end in .png",
+                at("cost.svg")
+            ),
+        ),
+        (
+            vec!["render".into(), "-o".into(), at("no/such/r.png")],
+            format!("directory {} does not exist", at("no/such")),
+        ),
+        (
+            vec!["render".into(), "-o".into(), at("r.jpg")],
+            "r.jpg: it is written as PNG, so its name must end in .png".into(),
+        ),
+        (
+            vec!["render".into(), "--exr".into(), at("r.png.tmp")],
+            "r.png.tmp: it is written as OpenEXR, so its name must end in .exr".into(),
+        ),
+        (
+            vec![
+                "bench".into(),
+                mesh.clone(),
+                "--rays".into(),
+                "10".into(),
+                "--write-rays".into(),
+                at("tetra.obj/rays"),
+            ],
+            format!(
+                "cannot create {}: {mesh} is not a directory",
+                at("tetra.obj/rays")
+            ),
+        ),
+    ];
+    for (args, reason) in cases {
+        // One line on stderr also means no "measured ..." progress line: nothing was measured.
+        let output = hbv(&args);
+        assert!(output.stdout.is_empty(), "{args:?} ran");
+        let line = one_error_line(&output);
+        assert!(line.ends_with(&reason), "{args:?}: {line}");
+    }
+    assert_eq!(s.files(), before);
+}
+
 /// Thread and ray counts past what any machine uses are refused at once (tens of thousands of
 /// threads took minutes to start; `bench --rays 2^64 - 1` overflowed an allocation).
 #[test]

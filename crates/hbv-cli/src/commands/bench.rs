@@ -15,6 +15,7 @@ use hbv::bvh::BuildTree;
 use hbv::geometry::Ray;
 use hbv::query::PACKET_SIZE;
 use hbv::{Accelerator, TraversalStats, TriangleMesh};
+use hbv_cli::output_check::check_output_folder;
 use hbv_cli::ray_file;
 use hbv_cli::ray_sets::{camera_image_size, RaySet, Stage};
 use rayon::ThreadPool;
@@ -147,6 +148,9 @@ struct Report {
 
 /// Runs `hbv bench`: writes the ray sets, or measures every requested layout on them.
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
+    if let Some(dir) = &args.write_rays {
+        check_ray_set_outputs(dir, args.force)?;
+    }
     let (mesh, name, load_seconds) = load_mesh(args.mesh.as_deref())?;
     if mesh.triangle_count() == mesh.degenerate_count() {
         bail!("{name} has no triangle of non-zero area: there is no surface to shoot rays from");
@@ -156,7 +160,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         .map(|&set| (set, set.generate(&mesh, args.rays, args.ray_seed)))
         .collect();
     if let Some(dir) = &args.write_rays {
-        return write_ray_sets(dir, &sets, args.force);
+        return write_ray_sets(dir, &sets);
     }
 
     let pools = thread_pools(args.threads)?;
@@ -277,18 +281,18 @@ fn measure_accelerator(
     results
 }
 
-/// Writes each set as `DIR/NAME.npz`, creating `DIR` if needed. Unless `force`, a file that
-/// exists already is an error, found before anything is written.
-fn write_ray_sets(
-    dir: &std::path::Path,
-    sets: &[(RaySet, Vec<Ray>)],
-    force: bool,
-) -> anyhow::Result<()> {
-    let path = |set: &RaySet| dir.join(format!("{}.npz", set.name()));
+/// `DIR/NAME.npz`, the file of ray set `set` written by `--write-rays DIR`.
+fn ray_set_path(dir: &std::path::Path, set: RaySet) -> PathBuf {
+    dir.join(format!("{}.npz", set.name()))
+}
+
+/// Checks `--write-rays DIR` before the mesh is loaded and the rays made: unless `force`, a
+/// file that exists already is an error; `DIR` must be a folder, or one that can be made.
+fn check_ray_set_outputs(dir: &std::path::Path, force: bool) -> anyhow::Result<()> {
     if !force {
-        if let Some(existing) = sets
+        if let Some(existing) = RaySet::ALL
             .iter()
-            .map(|(set, _)| path(set))
+            .map(|&set| ray_set_path(dir, set))
             .find(|p| hbv_cli::atomic_write::in_the_way(p))
         {
             anyhow::bail!(
@@ -297,9 +301,16 @@ fn write_ray_sets(
             );
         }
     }
+    check_output_folder(dir)?;
+    Ok(())
+}
+
+/// Writes each set as `DIR/NAME.npz`, creating `DIR` if needed ([`check_ray_set_outputs`]
+/// has checked the paths).
+fn write_ray_sets(dir: &std::path::Path, sets: &[(RaySet, Vec<Ray>)]) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     for (set, rays) in sets {
-        let path = path(set);
+        let path = ray_set_path(dir, *set);
         ray_file::write_rays(&path, rays)
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("wrote {} ({} rays)", path.display(), rays.len());

@@ -34,6 +34,8 @@ pub fn run(args: &BuildCommandArgs) -> anyhow::Result<()> {
     if !args.force && hbv_cli::atomic_write::in_the_way(&args.out) {
         bail!("{} exists: pass --force to replace it", args.out.display());
     }
+    // A missing folder is refused before the build, with the message the write would give.
+    hbv_cli::atomic_write::check_writable(&args.out).context("cannot save the tree")?;
     let (mesh, name, load_seconds) = load_mesh(args.mesh.as_deref())?;
     let build = args.build.or_builder(BuilderName::BinnedSah);
     let built = build.build_with_report(&mesh);

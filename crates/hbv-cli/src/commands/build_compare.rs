@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 
+use anyhow::Context;
 use clap::{Args, ValueEnum};
 use hbv::bvh::layout::RecursiveLayout;
 use hbv::bvh::measured_cost::{closest_hit_work, isotropic_lines, tests_per_line};
@@ -10,6 +11,7 @@ use hbv::bvh::{expected_tests, sah_cost, SahWeights};
 use hbv::geometry::{Aabb, Ray};
 use hbv::glam::Vec3;
 use hbv::TriangleMesh;
+use hbv_cli::output_check::{check_output, OutputFormat};
 use hbv_cli::plot::{predicted_vs_measured, LabelledPoint, Series};
 use hbv_cli::ray_sets::RaySet;
 use rand::{RngExt, SeedableRng};
@@ -40,7 +42,8 @@ pub struct BuildCompareArgs {
     /// Print CSV instead of the table.
     #[arg(long, conflicts_with = "json")]
     pub csv: bool,
-    /// Draw predicted E[X] against measured tests to this PNG file.
+    /// Draw predicted E[X] against measured tests to this PNG file (its name ends in .png; its
+    /// folder must exist).
     #[arg(long)]
     pub plot: Option<PathBuf>,
     /// With --plot: replace the image if it exists (without this, an existing file is an error,
@@ -79,6 +82,8 @@ pub fn run(args: &BuildCompareArgs) -> anyhow::Result<()> {
                 plot.display()
             );
         }
+        // Before minutes of measuring, not after.
+        check_output(plot, Some(OutputFormat::Png)).context("cannot write the plot")?;
     }
     let (mesh, name, _) = load_mesh(args.mesh.as_deref())?;
     let bounds = mesh.bounds();

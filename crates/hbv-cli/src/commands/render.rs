@@ -10,6 +10,7 @@ use clap::{Args, ValueEnum};
 use hbv::grid::{GridConfig, UniformGrid};
 use hbv::Accelerator;
 use hbv_cli::atomic_write::{in_the_way, write_all_atomically};
+use hbv_cli::output_check::{check_output, OutputFormat};
 use hbv_render::image_output::{pass_image, to_exr};
 use hbv_render::{
     render, Frame, Pass, QueryCacheConfig, RayKind, RenderConfig, Scene, SceneTracer,
@@ -140,6 +141,14 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
                 path.display()
             );
         }
+    }
+    // A missing folder or a name of another format is refused now, not after rendering.
+    for (path, pass) in &outputs {
+        let format = match pass {
+            Some(_) => OutputFormat::Png,
+            None => OutputFormat::OpenExr,
+        };
+        check_output(path, Some(format))?;
     }
     let pool = thread_pool(args.threads)?;
 

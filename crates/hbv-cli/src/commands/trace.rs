@@ -75,6 +75,8 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
             args.out.display()
         );
     }
+    // A missing folder is refused before the tracing, with the message the write would give.
+    hbv_cli::atomic_write::check_writable(&args.out).context("cannot write hits")?;
     let pool = thread_pool(args.threads)?;
     let scene = load_scene(Some(&args.mesh))?;
     scene.check_build_options(&args.build)?;
