@@ -4,7 +4,7 @@
 //! | query | file | how |
 //! | --- | --- | --- |
 //! | nearest surface point | [`closest_point`] | branch and bound over an 8-child BVH (`search_tree`): conservative f32 bounds prune nodes (point–box, `box_bound`; near the leaves in a frame facing the surface, `node_frame`) and single triangles (their enclosing slab, cylinder and edge half-spaces: `triangle_enclosure`, `triangle_packet`), nearest child first; [`point_triangle`] decides in f64 (`point_triangle_lanes`: four triangles side by side, branch-free, the same bits; `search_lanes`: the AVX and portable forms of the search's lane steps) |
-//! | inside a closed mesh | [`inside`] | majority of three ray parity counts, each from one all-hits traversal |
+//! | inside a closed mesh | [`inside`] | one ray's parity, from one all-hits traversal (exact under the half-open edge rule); the majority of three for meshes that are not closed |
 
 mod box_bound;
 mod candidate_grid;
