@@ -105,6 +105,59 @@ impl fmt::Display for RayFileError {
 impl std::error::Error for RayFileError {}
 
 /// A shape as NumPy prints it: `(5,)`, `(5, 3)`, `()`.
+/// Why an archive member's bytes could not be read.
+#[derive(Debug)]
+enum MemberProblem {
+    /// The archive declares more bytes than can be held in memory: a compressed member may
+    /// expand to a thousand times its stored size, so the declared size is reserved before
+    /// anything is decompressed.
+    TooLarge(u64),
+    /// The member decompresses to more bytes than the archive declares for it.
+    LongerThanDeclared(u64),
+    Unreadable(io::Error),
+}
+
+impl fmt::Display for MemberProblem {
+    fn fmt(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        match self {
+            MemberProblem::TooLarge(size) => write!(
+                f,
+                "the archive declares it {size} bytes long uncompressed, more than this machine \
+                 can hold"
+            ),
+            MemberProblem::LongerThanDeclared(size) => write!(
+                f,
+                "it decompresses to more than the {size} bytes the archive declares for it"
+            ),
+            MemberProblem::Unreadable(e) => write!(f, "cannot read: {e}"),
+        }
+    }
+}
+
+/// Reads `member` into `bytes`: never more than its declared uncompressed size (memory is
+/// reserved for that size first, and refused cleanly if it cannot be had), and an error if the
+/// data runs past it. A small compressed member declaring, or decompressing to, gigabytes
+/// would otherwise take the machine's memory before any check could see it.
+fn read_declared(
+    declared: u64,
+    member: impl Read,
+    bytes: &mut Vec<u8>,
+) -> Result<(), MemberProblem> {
+    let size = usize::try_from(declared).map_err(|_| MemberProblem::TooLarge(declared))?;
+    bytes
+        .try_reserve_exact(size)
+        .map_err(|_| MemberProblem::TooLarge(declared))?;
+    // One byte past the declared size tells a member that runs past it.
+    let read = member
+        .take(declared.saturating_add(1))
+        .read_to_end(bytes)
+        .map_err(MemberProblem::Unreadable)?;
+    if read as u64 > declared {
+        return Err(MemberProblem::LongerThanDeclared(declared));
+    }
+    Ok(())
+}
+
 fn shape_str(shape: &[usize]) -> String {
     match shape {
         [n] => format!("({n},)"),
@@ -215,11 +268,11 @@ impl Archive {
         let read = self
             .zip
             .by_name(stored)
-            .map_err(io::Error::other)
-            .and_then(|mut member| member.read_to_end(&mut bytes));
+            .map_err(|e| MemberProblem::Unreadable(io::Error::other(e)))
+            .and_then(|member| read_declared(member.size(), member, &mut bytes));
         match read {
-            Ok(_) => Ok(bytes),
-            Err(e) => Err(self.error(name, Reason::Invalid(format!("cannot read: {e}")))),
+            Ok(()) => Ok(bytes),
+            Err(problem) => Err(self.error(name, Reason::Invalid(problem.to_string()))),
         }
     }
 
@@ -480,4 +533,41 @@ pub fn write_rays(path: &Path, rays: &[Ray]) -> io::Result<()> {
         npz.add("tmax", &tmax)?;
         npz.finish()
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_member_is_read_only_up_to_its_declared_size() {
+        let data = [7u8; 100];
+        let mut bytes = Vec::new();
+        read_declared(100, &data[..], &mut bytes).unwrap();
+        assert_eq!(bytes.len(), 100);
+        let mut bytes = Vec::new();
+        let problem = read_declared(99, &data[..], &mut bytes).unwrap_err();
+        assert!(
+            matches!(problem, MemberProblem::LongerThanDeclared(99)),
+            "{problem}"
+        );
+        assert!(bytes.len() <= 100);
+    }
+
+    #[test]
+    fn a_declared_size_beyond_memory_is_refused_before_reading() {
+        // A reader that must never be read: the size is refused first.
+        struct Untouchable;
+        impl Read for Untouchable {
+            fn read(&mut self, _: &mut [u8]) -> io::Result<usize> {
+                panic!("read before the declared size was checked")
+            }
+        }
+        let mut bytes = Vec::new();
+        let problem = read_declared(u64::MAX / 2, Untouchable, &mut bytes).unwrap_err();
+        assert!(matches!(problem, MemberProblem::TooLarge(_)), "{problem}");
+        assert!(problem
+            .to_string()
+            .contains("more than this machine can hold"));
+    }
 }
