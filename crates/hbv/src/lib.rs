@@ -8,6 +8,8 @@
 //! - [`BruteForce`]: the reference every accelerator is tested against.
 //! - [`grid`]: the uniform grid (3D-DDA, mailboxes); [`cache`]: shadow and last-hit caches;
 //!   [`scene_accelerators`]: one structure per ray type.
+//! - [`atomic_file`]: files written whole or not at all (saved trees, and the command line's
+//!   outputs).
 //!
 //! ```
 //! use hbv::bvh::build::{Builder, InsertionBuilder, InsertionConfig};
@@ -44,6 +46,7 @@ pub mod scene_accelerators;
 pub use brute_force::BruteForce;
 
 pub mod all_hits;
+pub mod atomic_file;
 mod batch_threads;
 pub mod proximity;
 

@@ -109,6 +109,26 @@ fn files_are_recognized_by_their_magic_not_their_name() {
     assert!(!is_bvh_file(dir.path().join("missing.hbv")));
 }
 
+/// `BvhFile::save` (the one path of `hbv build` and `BVH.save`) writes what `to_bytes` gives,
+/// reports its size, and replaces a file only when asked.
+#[test]
+fn save_writes_the_bytes_and_replaces_only_when_asked() {
+    use hbv::atomic_file::Replace;
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("tree.hbv");
+    let file = sample();
+    let bytes = file.save(&path, Replace::Never).unwrap();
+    assert_eq!(std::fs::read(&path).unwrap(), file.to_bytes());
+    assert_eq!(bytes, file.to_bytes().len() as u64);
+    let e = file.save(&path, Replace::Never).unwrap_err();
+    assert_eq!(e.kind(), std::io::ErrorKind::AlreadyExists);
+    assert!(e.to_string().contains("tree.hbv"), "{e}");
+    std::fs::write(&path, b"old").unwrap();
+    file.save(&path, Replace::Always).unwrap();
+    assert_eq!(std::fs::read(&path).unwrap(), file.to_bytes());
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}
+
 /// A saved icosphere of about 80k triangles, above 1 MiB (files that large were memory-mapped).
 fn large_file() -> BvhFile {
     let mesh = icosphere(Vec3::ZERO, 1.0, 6);

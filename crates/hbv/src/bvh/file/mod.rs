@@ -18,6 +18,7 @@ use std::path::Path;
 pub use error::{BvhFileError, BvhFileProblem};
 pub use format::{FORMAT_VERSION, MAGIC};
 
+use crate::atomic_file::{write_atomically, Replace};
 use crate::bvh::BuildTree;
 use crate::mesh::TriangleMesh;
 
@@ -43,8 +44,22 @@ impl BvhFile {
         read::parse(bytes, source)
     }
 
-    /// Writes the file to `out` (callers make it atomic: write to a temporary file, then
-    /// rename). The tree is saved in breadth-first order; loading gives back the same tree
+    /// Saves the file at `path`, atomically ([`crate::atomic_file`]): a reader never sees half
+    /// a tree, a failed save leaves `path` as it was, and with [`Replace::Never`] a file at
+    /// `path` (even one created while the tree is written) is never replaced. Returns the
+    /// number of bytes written. This is the one way `hbv build` and Python's `BVH.save` save.
+    pub fn save(&self, path: impl AsRef<Path>, replace: Replace) -> std::io::Result<u64> {
+        let mut bytes = 0;
+        write_atomically(path.as_ref(), replace, |file| {
+            let mut counted = write::CountedWriter::new(file);
+            self.write_to(&mut counted)?;
+            bytes = counted.bytes();
+            Ok(())
+        })?;
+        Ok(bytes)
+    }
+
+    /// Writes the file to `out` ([`BvhFile::save`] makes it atomic on disk). The tree is saved in breadth-first order; loading gives back the same tree
     /// after [`BuildTree::compact`] on both sides.
     pub fn write_to(&self, out: &mut impl std::io::Write) -> std::io::Result<()> {
         write::write(self, out)

@@ -62,6 +62,35 @@ pub(super) fn write(file: &BvhFile, out: &mut impl Write) -> io::Result<()> {
     out.flush()
 }
 
+/// Passes writes through to `out`, counting the bytes: the size of a saved file, told without
+/// asking the file system (a pipe has none).
+pub(super) struct CountedWriter<W> {
+    out: W,
+    bytes: u64,
+}
+
+impl<W: Write> CountedWriter<W> {
+    pub(super) fn new(out: W) -> Self {
+        CountedWriter { out, bytes: 0 }
+    }
+
+    pub(super) fn bytes(&self) -> u64 {
+        self.bytes
+    }
+}
+
+impl<W: Write> Write for CountedWriter<W> {
+    fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
+        let n = self.out.write(buf)?;
+        self.bytes += n as u64;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> io::Result<()> {
+        self.out.flush()
+    }
+}
+
 /// The settings line, cut at a character boundary to at most [`MAX_SETTINGS`] bytes.
 fn truncated_settings(settings: &str) -> &str {
     let mut end = settings.len().min(MAX_SETTINGS as usize);
