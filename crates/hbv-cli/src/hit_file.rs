@@ -7,13 +7,14 @@ use std::path::Path;
 use hbv::Hit;
 use ndarray::Array1;
 
-use crate::atomic_write::write_atomically;
 use crate::npz_writer::NpzStream;
 use crate::ray_file::{Archive, RayFileError};
+use hbv::atomic_file::{write_atomically, Replace};
 
-/// Writes closest hits to `path`, replacing it atomically: members `hit` (bool), `t` (float32,
+/// Writes closest hits to `path` atomically ([`write_atomically`], replacing a file only as
+/// `replace` says): members `hit` (bool), `t` (float32,
 /// +inf on a miss), `prim` (int64, -1 on a miss), `u` and `v` (float32, 0 on a miss), all (N,).
-pub fn write_hits(path: &Path, hits: &[Option<Hit>]) -> io::Result<()> {
+pub fn write_hits(path: &Path, hits: &[Option<Hit>], replace: Replace) -> io::Result<()> {
     let column = |f: fn(&Hit) -> f32, miss: f32| -> Array1<f32> {
         hits.iter().map(|h| h.as_ref().map_or(miss, f)).collect()
     };
@@ -25,7 +26,7 @@ pub fn write_hits(path: &Path, hits: &[Option<Hit>]) -> io::Result<()> {
         .collect();
     let u = column(|h| h.u, 0.0);
     let v = column(|h| h.v, 0.0);
-    write_atomically(path, |file| {
+    write_atomically(path, replace, |file| {
         let mut npz = NpzStream::new(file);
         npz.add("hit", &hit)?;
         npz.add("t", &t)?;
@@ -36,10 +37,10 @@ pub fn write_hits(path: &Path, hits: &[Option<Hit>]) -> io::Result<()> {
     })
 }
 
-/// Writes any-hit answers to `path`, replacing it atomically: member `occluded` (bool, (N,)).
-pub fn write_occlusion(path: &Path, occluded: &[bool]) -> io::Result<()> {
+/// Writes any-hit answers to `path` atomically, replacing a file only as `replace` says: member `occluded` (bool, (N,)).
+pub fn write_occlusion(path: &Path, occluded: &[bool], replace: Replace) -> io::Result<()> {
     let occluded = Array1::from(occluded.to_vec());
-    write_atomically(path, |file| {
+    write_atomically(path, replace, |file| {
         let mut npz = NpzStream::new(file);
         npz.add("occluded", &occluded)?;
         npz.finish()

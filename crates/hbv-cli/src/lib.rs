@@ -1,7 +1,6 @@
 //! The library behind the `hbv` command line: reading ray files, writing hit files (the `.npz`
 //! formats of `shared/RAYS.md`), and replacing output files atomically.
 
-pub mod atomic_write;
 pub mod hit_file;
 mod npy_header;
 mod npz_writer;

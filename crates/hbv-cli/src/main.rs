@@ -58,7 +58,7 @@ fn main() -> ExitCode {
     // Interrupted (Ctrl-C, SIGTERM) while writing an output: its temporary file goes too. The
     // output itself is whole or untouched either way (written atomically).
     let _ = ctrlc::set_handler(|| {
-        hbv_cli::atomic_write::remove_temporaries();
+        hbv::atomic_file::remove_temporaries();
         eprintln!("hbv: interrupted");
         std::process::exit(130);
     });

@@ -8,7 +8,7 @@
 use std::io;
 use std::path::Path;
 
-use crate::atomic_write::check_writable;
+use hbv::atomic_file::{check_writable, Replace};
 
 /// What an output file is written as, for the check of its name.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -35,7 +35,7 @@ impl OutputFormat {
     }
 }
 
-/// Checks that `path` can be written as [`write_atomically`](crate::atomic_write) would write
+/// Checks that `path` can be written as [`hbv::atomic_file::write_atomically`] would write
 /// it (not a directory; its folder exists and is a folder) and, for a `format`, that its name
 /// ends in that format's extension, so that a `.svg` or `.jpg` name does not get a PNG under
 /// it. A device or a pipe (`/dev/null`) is written into whatever its name.
@@ -58,6 +58,17 @@ pub fn check_output(path: &Path, format: Option<OutputFormat>) -> io::Result<()>
             format.extension()
         ),
     ))
+}
+
+/// What a command's `--force` means for its outputs: replace files that exist, or refuse them.
+/// Refusing is decided when each output is put in place, atomically, so a file created while
+/// the command works is not replaced either (a check before the work alone let it be).
+pub fn replace_policy(force: bool) -> Replace {
+    if force {
+        Replace::Always
+    } else {
+        Replace::Never
+    }
 }
 
 /// Checks a folder that a command creates (with its parents) and fills: it is a folder if it

@@ -8,7 +8,7 @@ use hbv_render::image_output::Rgb8Image;
 use plotters::prelude::*;
 use plotters::style::{register_font, FontStyle};
 
-use crate::atomic_write::write_atomically;
+use hbv::atomic_file::{write_atomically, Replace};
 
 /// DejaVu Sans (Bitstream Vera licence, `assets/DejaVuSans.LICENSE`), embedded so that charts
 /// render the same on every machine, with or without system fonts.
@@ -31,7 +31,8 @@ pub struct Series {
 const SIZE: (u32, u32) = (1000, 750);
 
 /// Draws `series` as a scatter chart with the line `y = x`, as a PNG at `path`, written
-/// atomically ([`write_atomically`]: a device or a pipe is written into, a link through).
+/// atomically ([`write_atomically`]: a device or a pipe is written into, a link through; a
+/// file replaced only as `replace` says).
 ///
 /// The chart is drawn into memory and encoded there: the drawing library wrote its own file,
 /// beside `path` under a fixed name (`x.tmp.png`, replacing any file of that name, left behind
@@ -39,6 +40,7 @@ const SIZE: (u32, u32) = (1000, 750);
 /// text. Callers check `path` before their work ([`crate::output_check::check_output`]).
 pub fn predicted_vs_measured(
     path: &Path,
+    replace: Replace,
     title: &str,
     x_label: &str,
     y_label: &str,
@@ -99,6 +101,7 @@ pub fn predicted_vs_measured(
         pixels,
     }
     .to_png()?;
-    write_atomically(path, |file| file.write_all(&png)).context("cannot write the plot")?;
+    write_atomically(path, replace, |file| file.write_all(&png))
+        .context("cannot write the plot")?;
     Ok(())
 }

@@ -514,8 +514,8 @@ fn rays_of(mut npz: Archive) -> Result<Vec<Ray>, RayFileError> {
 }
 
 /// Writes `rays` as a ray file (`origins`, `directions`, `tmin`, `tmax`, all float32),
-/// atomically: the file at `path` is replaced whole or not at all.
-pub fn write_rays(path: &Path, rays: &[Ray]) -> io::Result<()> {
+/// atomically: the file at `path` is replaced whole or not at all, and only as `replace` says.
+pub fn write_rays(path: &Path, rays: &[Ray], replace: hbv::atomic_file::Replace) -> io::Result<()> {
     use ndarray::{Array1, Array2};
     let rows = |f: fn(&Ray) -> Vec3| -> Array2<f32> {
         let flat: Vec<f32> = rays.iter().flat_map(|r| f(r).to_array()).collect();
@@ -525,7 +525,7 @@ pub fn write_rays(path: &Path, rays: &[Ray]) -> io::Result<()> {
     let directions = rows(|r| r.direction);
     let tmin: Array1<f32> = rays.iter().map(|r| r.tmin).collect();
     let tmax: Array1<f32> = rays.iter().map(|r| r.tmax).collect();
-    crate::atomic_write::write_atomically(path, |file| {
+    hbv::atomic_file::write_atomically(path, replace, |file| {
         let mut npz = NpzStream::new(file);
         npz.add("origins", &origins)?;
         npz.add("directions", &directions)?;

@@ -36,7 +36,12 @@ impl Scene {
             Ray::new(Vec3::new(0.2, 0.2, -1.0), Vec3::Z),
             Ray::new(Vec3::new(5.0, 5.0, 5.0), Vec3::X),
         ];
-        ray_file::write_rays(&dir.path().join("rays.npz"), &rays).unwrap();
+        ray_file::write_rays(
+            &dir.path().join("rays.npz"),
+            &rays,
+            hbv::atomic_file::Replace::Always,
+        )
+        .unwrap();
         Self { dir }
     }
 
@@ -377,7 +382,7 @@ fn rays_that_cannot_hit_are_misses_not_errors() {
         Ray::new(o, Vec3::Z).with_interval(-10.0, 10.0),
     ];
     let rays_path = s.path("odd.npz");
-    ray_file::write_rays(&rays_path, &rays).unwrap();
+    ray_file::write_rays(&rays_path, &rays, hbv::atomic_file::Replace::Always).unwrap();
     let out = s.path("hits.npz");
     let output = hbv(&[
         OsStr::new("trace"),

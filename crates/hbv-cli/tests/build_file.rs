@@ -68,7 +68,7 @@ fn a_saved_tree_traces_like_brute_force_and_info_reads_it() {
         })
         .collect();
     let rays_path = dir.path().join("rays.npz");
-    ray_file::write_rays(&rays_path, &rays).unwrap();
+    ray_file::write_rays(&rays_path, &rays, hbv::atomic_file::Replace::Always).unwrap();
     let hits_path = dir.path().join("hits.npz");
     let out = hbv(&[
         "trace",

@@ -61,7 +61,7 @@ fn assert_trace_matches_brute_force(
     let rays_path = dir.join("rays.npz");
     let hits_path = dir.join("hits.npz");
     let occ_path = dir.join("occluded.npz");
-    ray_file::write_rays(&rays_path, rays).unwrap();
+    ray_file::write_rays(&rays_path, rays, hbv::atomic_file::Replace::Always).unwrap();
     let m = mesh_path.to_str().unwrap();
     let r = rays_path.to_str().unwrap();
     let out = hbv(&[
@@ -236,7 +236,12 @@ fn trace_json_reports_timings_and_threads_or_repeats_do_not_change_answers() {
     let path = dir.path().join("torus.obj");
     write_obj(&mesh, &path);
     let rays_path = dir.path().join("rays.npz");
-    ray_file::write_rays(&rays_path, &rays_at(&mesh, 1000, 2)).unwrap();
+    ray_file::write_rays(
+        &rays_path,
+        &rays_at(&mesh, 1000, 2),
+        hbv::atomic_file::Replace::Always,
+    )
+    .unwrap();
     // `hbv trace` of the torus and its rays into `out`, with more options.
     let trace = |out: &Path, options: &[&str]| {
         let mut args = vec![

@@ -54,7 +54,7 @@ fn trace_with_the_grid_equals_brute_force_exactly() {
         dir.path().join("hits.npz"),
         dir.path().join("occ.npz"),
     );
-    ray_file::write_rays(&rays_path, &rays).unwrap();
+    ray_file::write_rays(&rays_path, &rays, hbv::atomic_file::Replace::Always).unwrap();
     let common = [
         "trace",
         path.to_str().unwrap(),

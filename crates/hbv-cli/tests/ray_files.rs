@@ -1,13 +1,12 @@
-//! Ray, hit and occlusion files (`shared/RAYS.md`) and atomic writes.
+//! Ray, hit and occlusion files (`shared/RAYS.md`).
 
 use std::fs::{self, File};
-use std::io::{self, Write};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use glam::Vec3;
+use hbv::atomic_file::Replace;
 use hbv::geometry::Ray;
 use hbv::Hit;
-use hbv_cli::atomic_write::write_atomically;
 use hbv_cli::hit_file::{read_hits, read_occlusion, write_hits, write_occlusion};
 use hbv_cli::ray_file::read_rays;
 use ndarray::{array, Array1, Array2, ShapeBuilder};
@@ -425,7 +424,7 @@ fn hits_round_trip_with_misses() {
     let dir = tmp();
     let path = dir.path().join("hits.npz");
     let hits = sample_hits();
-    write_hits(&path, &hits).unwrap();
+    write_hits(&path, &hits, Replace::Always).unwrap();
     assert_eq!(read_hits(&path).unwrap(), hits);
 
     // The raw members: NumPy's names (`hit.npy`) and the values RAYS.md gives misses.
@@ -446,7 +445,7 @@ fn hits_round_trip_with_misses() {
     assert_eq!(v, array![0.5, 0.0, 1.0, 0.0]);
 
     // Writing again replaces the file.
-    write_hits(&path, &[]).unwrap();
+    write_hits(&path, &[], Replace::Always).unwrap();
     assert_eq!(read_hits(&path).unwrap(), vec![]);
     assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
 }
@@ -492,7 +491,7 @@ fn occlusion_round_trip() {
     let dir = tmp();
     let path = dir.path().join("occ.npz");
     let occluded = vec![true, false, false, true, true];
-    write_occlusion(&path, &occluded).unwrap();
+    write_occlusion(&path, &occluded, Replace::Always).unwrap();
     assert_eq!(read_occlusion(&path).unwrap(), occluded);
     let raw = fs::read(&path).unwrap();
     assert!(raw.windows(12).any(|w| w == b"occluded.npy"));
@@ -504,146 +503,14 @@ fn occlusion_round_trip() {
     );
 }
 
-fn entries(dir: &Path) -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().path())
-        .collect();
-    v.sort();
-    v
-}
-
+/// Hit and occlusion files name a missing folder (the writer itself is tested in
+/// `crates/hbv/tests/atomic_file.rs`).
 #[test]
-fn atomic_write_replaces_the_file() {
-    let dir = tmp();
-    let path = dir.path().join("out.bin");
-    fs::write(&path, b"old").unwrap();
-    write_atomically(&path, |f| f.write_all(b"new contents")).unwrap();
-    assert_eq!(fs::read(&path).unwrap(), b"new contents");
-    assert_eq!(entries(dir.path()), vec![path]);
-}
-
-/// A symbolic link is written through: its target gets the new contents, the link stays a link.
-#[cfg(unix)]
-#[test]
-fn atomic_write_through_a_link_keeps_the_link() {
-    let dir = tmp();
-    let target = dir.path().join("target.bin");
-    let link = dir.path().join("link.bin");
-    fs::write(&target, b"old").unwrap();
-    std::os::unix::fs::symlink("target.bin", &link).unwrap();
-    write_atomically(&link, |f| f.write_all(b"new")).unwrap();
-    assert!(fs::symlink_metadata(&link)
-        .unwrap()
-        .file_type()
-        .is_symlink());
-    assert_eq!(fs::read(&target).unwrap(), b"new");
-    assert_eq!(entries(dir.path()), vec![link, target]);
-}
-
-/// What is not a regular file is written into in place, never replaced by one: a named pipe
-/// (read on another thread), `/dev/null`; `/dev/full` reports its error; a directory is refused.
-#[cfg(unix)]
-#[test]
-fn atomic_write_into_devices_and_pipes_writes_in_place() {
-    use std::os::unix::fs::FileTypeExt;
-    let dir = tmp();
-    let fifo = dir.path().join("pipe");
-    let c_path = std::ffi::CString::new(fifo.to_str().unwrap()).unwrap();
-    // SAFETY: a NUL-terminated path; mkfifo reads it and returns a status.
-    assert_eq!(unsafe { libc::mkfifo(c_path.as_ptr(), 0o600) }, 0);
-    let reader = {
-        let fifo = fifo.clone();
-        std::thread::spawn(move || fs::read(fifo).unwrap())
-    };
-    write_atomically(&fifo, |f| f.write_all(b"through the pipe")).unwrap();
-    assert_eq!(reader.join().unwrap(), b"through the pipe");
-    assert!(fs::symlink_metadata(&fifo).unwrap().file_type().is_fifo());
-    assert_eq!(entries(dir.path()), vec![fifo]);
-
-    let null = Path::new("/dev/null");
-    if fs::metadata(null).is_ok_and(|m| m.file_type().is_char_device()) {
-        write_atomically(null, |f| f.write_all(b"gone")).unwrap();
-        assert!(fs::metadata(null).unwrap().file_type().is_char_device());
-    }
-    let full = Path::new("/dev/full");
-    if fs::metadata(full).is_ok_and(|m| m.file_type().is_char_device()) {
-        let e = write_atomically(full, |f| f.write_all(b"no room")).unwrap_err();
-        assert_mentions(&e.to_string(), &["/dev/full"]);
-        assert!(fs::metadata(full).unwrap().file_type().is_char_device());
-    }
-    let e = write_atomically(dir.path(), |f| f.write_all(b"x")).unwrap_err();
-    assert_mentions(&e.to_string(), &["is a directory"]);
-}
-
-#[test]
-fn atomic_write_failure_keeps_original_and_cleans_up() {
-    let dir = tmp();
-    let path = dir.path().join("out.bin");
-    fs::write(&path, b"old").unwrap();
-    let e = write_atomically(&path, |f| {
-        f.write_all(b"partial")?;
-        Err(io::Error::other("disk on fire"))
-    })
-    .unwrap_err();
-    assert_mentions(&e.to_string(), &["out.bin", "disk on fire"]);
-    assert_eq!(fs::read(&path).unwrap(), b"old");
-    assert_eq!(entries(dir.path()), vec![path.clone()]);
-
-    // Also when nothing was there before.
-    let fresh = dir.path().join("fresh.bin");
-    assert!(write_atomically(&fresh, |_| Err(io::Error::other("no"))).is_err());
-    assert!(!fresh.exists());
-    assert_eq!(entries(dir.path()), vec![path]);
-}
-
-#[test]
-fn atomic_write_into_missing_directory() {
+fn hit_files_into_a_missing_folder_name_it() {
     let dir = tmp();
     let path = dir.path().join("no/such/dir/hits.npz");
-    let e = write_atomically(&path, |f| f.write_all(b"x")).unwrap_err();
-    assert_eq!(e.kind(), io::ErrorKind::NotFound);
-    assert_mentions(
-        &e.to_string(),
-        &["hits.npz", "no/such/dir", "does not exist"],
-    );
-    let e = write_hits(&path, &sample_hits()).unwrap_err();
+    let e = write_hits(&path, &sample_hits(), Replace::Never).unwrap_err();
     assert_mentions(&e.to_string(), &["hits.npz", "does not exist"]);
-    let e = write_occlusion(&path, &[true]).unwrap_err();
+    let e = write_occlusion(&path, &[true], Replace::Never).unwrap_err();
     assert_mentions(&e.to_string(), &["hits.npz", "does not exist"]);
-}
-
-#[test]
-fn atomic_write_onto_a_directory_fails_cleanly() {
-    let dir = tmp();
-    let target = dir.path().join("taken");
-    fs::create_dir(&target).unwrap();
-    let e = write_atomically(&target, |f| f.write_all(b"x")).unwrap_err();
-    assert_mentions(&e.to_string(), &["taken"]);
-    assert!(target.is_dir());
-    assert_eq!(entries(dir.path()), vec![target]);
-}
-
-#[cfg(unix)]
-#[test]
-fn atomic_write_into_read_only_directory() {
-    use std::os::unix::fs::PermissionsExt;
-    let dir = tmp();
-    let ro = dir.path().join("ro");
-    fs::create_dir(&ro).unwrap();
-    fs::set_permissions(&ro, fs::Permissions::from_mode(0o555)).unwrap();
-    // Privileged users (root in a container) may write anyway; then there is nothing to test.
-    let probe = ro.join("probe");
-    if File::create(&probe).is_ok() {
-        fs::remove_file(&probe).unwrap();
-        return;
-    }
-    let path = ro.join("hits.npz");
-    let e = write_atomically(&path, |f| f.write_all(b"x")).unwrap_err();
-    assert_eq!(e.kind(), io::ErrorKind::PermissionDenied);
-    assert_mentions(
-        &e.to_string(),
-        &["hits.npz", "cannot create a temporary file"],
-    );
-    fs::set_permissions(&ro, fs::Permissions::from_mode(0o755)).unwrap();
 }

@@ -10,12 +10,13 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
+use hbv::atomic_file::Replace;
 use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
 use hbv::bvh::BuildTree;
 use hbv::geometry::Ray;
 use hbv::query::PACKET_SIZE;
 use hbv::{Accelerator, TraversalStats, TriangleMesh};
-use hbv_cli::output_check::check_output_folder;
+use hbv_cli::output_check::{check_output_folder, replace_policy};
 use hbv_cli::ray_file;
 use hbv_cli::ray_sets::{camera_image_size, RaySet, Stage};
 use rayon::ThreadPool;
@@ -160,7 +161,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         .map(|&set| (set, set.generate(&mesh, args.rays, args.ray_seed)))
         .collect();
     if let Some(dir) = &args.write_rays {
-        return write_ray_sets(dir, &sets);
+        return write_ray_sets(dir, &sets, replace_policy(args.force));
     }
 
     let pools = thread_pools(args.threads)?;
@@ -293,7 +294,7 @@ fn check_ray_set_outputs(dir: &std::path::Path, force: bool) -> anyhow::Result<(
         if let Some(existing) = RaySet::ALL
             .iter()
             .map(|&set| ray_set_path(dir, set))
-            .find(|p| hbv_cli::atomic_write::in_the_way(p))
+            .find(|p| hbv::atomic_file::would_replace(p))
         {
             anyhow::bail!(
                 "{}: the output file exists; pass --force to replace it",
@@ -307,11 +308,15 @@ fn check_ray_set_outputs(dir: &std::path::Path, force: bool) -> anyhow::Result<(
 
 /// Writes each set as `DIR/NAME.npz`, creating `DIR` if needed ([`check_ray_set_outputs`]
 /// has checked the paths).
-fn write_ray_sets(dir: &std::path::Path, sets: &[(RaySet, Vec<Ray>)]) -> anyhow::Result<()> {
+fn write_ray_sets(
+    dir: &std::path::Path,
+    sets: &[(RaySet, Vec<Ray>)],
+    replace: Replace,
+) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     for (set, rays) in sets {
         let path = ray_set_path(dir, *set);
-        ray_file::write_rays(&path, rays)
+        ray_file::write_rays(&path, rays, replace)
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("wrote {} ({} rays)", path.display(), rays.len());
     }

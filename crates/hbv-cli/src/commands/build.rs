@@ -1,14 +1,14 @@
 //! `hbv build`: build a tree over a mesh once and save it, with the mesh, as a `.hbv` file that
 //! `info` and `trace` load instead of building again.
 
-use std::io::Write;
 use std::path::PathBuf;
 
 use anyhow::{bail, Context};
 use clap::Args;
+use hbv::atomic_file::would_replace;
 use hbv::bvh::expected_tests;
 use hbv::bvh::file::BvhFile;
-use hbv_cli::atomic_write::write_atomically;
+use hbv_cli::output_check::replace_policy;
 use serde_json::json;
 
 use super::build_args::{load_mesh, BuildArgs, BuilderName};
@@ -17,7 +17,7 @@ use super::build_args::{load_mesh, BuildArgs, BuilderName};
 pub struct BuildCommandArgs {
     /// Mesh file (.obj, .ply, .gltf, .glb); the built-in scene when omitted.
     pub mesh: Option<PathBuf>,
-    /// Output file (.hbv), written atomically (temporary file, then rename).
+    /// Output file (.hbv), written atomically (temporary file, then rename or link).
     #[arg(short = 'o', long)]
     pub out: PathBuf,
     /// Replace the output file if it exists.
@@ -31,11 +31,11 @@ pub struct BuildCommandArgs {
 }
 
 pub fn run(args: &BuildCommandArgs) -> anyhow::Result<()> {
-    if !args.force && hbv_cli::atomic_write::in_the_way(&args.out) {
+    if !args.force && would_replace(&args.out) {
         bail!("{} exists: pass --force to replace it", args.out.display());
     }
     // A missing folder is refused before the build, with the message the write would give.
-    hbv_cli::atomic_write::check_writable(&args.out).context("cannot save the tree")?;
+    hbv::atomic_file::check_writable(&args.out).context("cannot save the tree")?;
     let (mesh, name, load_seconds) = load_mesh(args.mesh.as_deref())?;
     let build = args.build.or_builder(BuilderName::BinnedSah);
     let built = build.build_with_report(&mesh);
@@ -45,14 +45,11 @@ pub fn run(args: &BuildCommandArgs) -> anyhow::Result<()> {
         tree: built.tree,
         settings: build.describe(),
     };
-    let mut bytes = 0u64;
-    write_atomically(&args.out, |out| {
-        let mut counted = CountingWriter { out, bytes: 0 };
-        file.write_to(&mut counted)?;
-        bytes = counted.bytes;
-        Ok(())
-    })
-    .context("cannot save the tree")?;
+    // The same save as Python's `BVH.save`; without --force a file that appeared during the
+    // build is refused too.
+    let bytes = file
+        .save(&args.out, replace_policy(args.force))
+        .context("cannot save the tree")?;
     let build_seconds = built.build_seconds + built.optimize_seconds;
     if args.json {
         let out = json!({
@@ -79,21 +76,4 @@ pub fn run(args: &BuildCommandArgs) -> anyhow::Result<()> {
         println!("wrote     {} ({bytes} bytes)", args.out.display());
     }
     Ok(())
-}
-
-/// Counts the bytes written through it.
-struct CountingWriter<'a, W> {
-    out: &'a mut W,
-    bytes: u64,
-}
-
-impl<W: Write> Write for CountingWriter<'_, W> {
-    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
-        let n = self.out.write(buf)?;
-        self.bytes += n as u64;
-        Ok(n)
-    }
-    fn flush(&mut self) -> std::io::Result<()> {
-        self.out.flush()
-    }
 }

@@ -5,13 +5,14 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use clap::{Args, ValueEnum};
+use hbv::atomic_file::Replace;
 use hbv::bvh::layout::RecursiveLayout;
 use hbv::bvh::measured_cost::{closest_hit_work, isotropic_lines, tests_per_line};
 use hbv::bvh::{expected_tests, sah_cost, SahWeights};
 use hbv::geometry::{Aabb, Ray};
 use hbv::glam::Vec3;
 use hbv::TriangleMesh;
-use hbv_cli::output_check::{check_output, OutputFormat};
+use hbv_cli::output_check::{check_output, replace_policy, OutputFormat};
 use hbv_cli::plot::{predicted_vs_measured, LabelledPoint, Series};
 use hbv_cli::ray_sets::RaySet;
 use rand::{RngExt, SeedableRng};
@@ -76,7 +77,7 @@ struct Row {
 
 pub fn run(args: &BuildCompareArgs) -> anyhow::Result<()> {
     if let Some(plot) = &args.plot {
-        if !args.force && hbv_cli::atomic_write::in_the_way(plot) {
+        if !args.force && hbv::atomic_file::would_replace(plot) {
             anyhow::bail!(
                 "{}: the output file exists; pass --force to replace it",
                 plot.display()
@@ -122,7 +123,7 @@ pub fn run(args: &BuildCompareArgs) -> anyhow::Result<()> {
         print_table(&name, &mesh, args.rays, &rows);
     }
     if let Some(path) = &args.plot {
-        plot(path, &name, &rows)?;
+        plot(path, replace_policy(args.force), &name, &rows)?;
     }
     Ok(())
 }
@@ -252,7 +253,7 @@ fn print_csv(rows: &[Row]) {
     }
 }
 
-fn plot(path: &std::path::Path, name: &str, rows: &[Row]) -> anyhow::Result<()> {
+fn plot(path: &std::path::Path, replace: Replace, name: &str, rows: &[Row]) -> anyhow::Result<()> {
     let series = |label: &str, y: fn(&Row) -> f64| Series {
         name: label.to_string(),
         points: rows
@@ -266,6 +267,7 @@ fn plot(path: &std::path::Path, name: &str, rows: &[Row]) -> anyhow::Result<()> 
     };
     predicted_vs_measured(
         path,
+        replace,
         &format!("Predicted against measured tests per ray: {name}"),
         "predicted E[X] (tests per isotropic line)",
         "measured tests per ray",

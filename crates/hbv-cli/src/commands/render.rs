@@ -7,10 +7,10 @@ use std::time::Instant;
 
 use anyhow::{bail, Context};
 use clap::{Args, ValueEnum};
+use hbv::atomic_file::{would_replace, write_all_atomically};
 use hbv::grid::{GridConfig, UniformGrid};
 use hbv::Accelerator;
-use hbv_cli::atomic_write::{in_the_way, write_all_atomically};
-use hbv_cli::output_check::{check_output, OutputFormat};
+use hbv_cli::output_check::{check_output, replace_policy, OutputFormat};
 use hbv_render::image_output::{pass_image, to_exr};
 use hbv_render::{
     render, Frame, Pass, QueryCacheConfig, RayKind, RenderConfig, Scene, SceneTracer,
@@ -135,7 +135,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         }
     }
     if !args.force {
-        if let Some((path, _)) = outputs.iter().find(|(p, _)| in_the_way(p)) {
+        if let Some((path, _)) = outputs.iter().find(|(p, _)| would_replace(p)) {
             bail!(
                 "{} already exists (use --force to replace it)",
                 path.display()
@@ -242,7 +242,7 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
     let files: Vec<(&Path, &[u8])> = encoded.iter().map(|(p, b)| (*p, b.as_slice())).collect();
-    write_all_atomically(&files)?;
+    write_all_atomically(&files, replace_policy(args.force))?;
 
     let report = Report {
         scene_name: &scene_name,

@@ -5,6 +5,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::Args;
+use hbv_cli::output_check::replace_policy;
 use hbv_cli::{hit_file, ray_file};
 use serde_json::json;
 
@@ -69,14 +70,14 @@ enum Answers {
 pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     // Checked first, so that a run that would be refused costs nothing (a dangling link is in
     // the way too; a device such as /dev/null is not).
-    if !args.force && hbv_cli::atomic_write::in_the_way(&args.out) {
+    if !args.force && hbv::atomic_file::would_replace(&args.out) {
         anyhow::bail!(
             "{}: the output file exists; pass --force to replace it",
             args.out.display()
         );
     }
     // A missing folder is refused before the tracing, with the message the write would give.
-    hbv_cli::atomic_write::check_writable(&args.out).context("cannot write hits")?;
+    hbv::atomic_file::check_writable(&args.out).context("cannot write hits")?;
     let pool = thread_pool(args.threads)?;
     let scene = load_scene(Some(&args.mesh))?;
     scene.check_build_options(&args.build)?;
@@ -140,11 +141,13 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     let trace_seconds = median(&mut run_seconds.clone());
     let hit_count = match &answers {
         Answers::Occluded(occluded) => {
-            hit_file::write_occlusion(&args.out, occluded).context("cannot write hits")?;
+            hit_file::write_occlusion(&args.out, occluded, replace_policy(args.force))
+                .context("cannot write hits")?;
             occluded.iter().filter(|&&o| o).count()
         }
         Answers::Hits(hits) => {
-            hit_file::write_hits(&args.out, hits).context("cannot write hits")?;
+            hit_file::write_hits(&args.out, hits, replace_policy(args.force))
+                .context("cannot write hits")?;
             hits.iter().filter(|h| h.is_some()).count()
         }
     };
