@@ -102,6 +102,20 @@ def test_save_never_overwrites_unless_asked(tmp_path, sphere):
         bvh.save(tmp_path, overwrite=True)
 
 
+def test_threads_saving_one_path_at_once_all_succeed(tmp_path, sphere):
+    """Each save stages its own temporary file (they were named by the process id alone, so
+    two threads saving one path collided): all succeed and one whole file is left."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    mesh, _, _ = sphere
+    bvh = hbv.BVH(mesh)
+    path = tmp_path / "shared.hbv"
+    with ThreadPoolExecutor(4) as pool:
+        list(pool.map(lambda _: bvh.save(path, overwrite=True), range(16)))
+    assert sorted(os.listdir(tmp_path)) == ["shared.hbv"]
+    assert hbv.load_bvh(path).stats()["nodes"] == bvh.stats()["nodes"]
+
+
 @pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="needs named pipes")
 def test_save_writes_through_links_and_into_pipes(tmp_path, sphere):
     """A link is written through (the link stays); a pipe or device is written into, never

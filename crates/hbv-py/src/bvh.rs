@@ -314,7 +314,8 @@ impl PyBvh {
 
     /// Saves the tree with its mesh to `path` in the `.hbv` format (docs/BVH_FILE.md), for
     /// `hbv.load_bvh(path)` or the `hbv` command line. Written atomically (a temporary file,
-    /// then renamed into place); FileExistsError if `path` exists, unless `overwrite=True`.
+    /// then renamed into place); FileExistsError if `path` exists, unless `overwrite=True`
+    /// (also if it appears while the tree is written).
     #[pyo3(signature = (path, overwrite=false))]
     fn save(&self, py: Python<'_>, path: PathBuf, overwrite: bool) -> PyResult<()> {
         save(py, self, path, overwrite)

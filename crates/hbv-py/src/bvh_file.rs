@@ -1,15 +1,15 @@
 //! `BVH.save(path)` and `hbv.load_bvh(path)`: trees in the library's `.hbv` file format
 //! (docs/BVH_FILE.md), written atomically and never over an existing file unless asked.
 
-use std::fs;
-use std::io::Write;
+use std::io;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use hbv::atomic_file::Replace;
 use hbv::bvh::file::{BvhFile, BvhFileProblem};
 use pyo3::exceptions::{
     PyFileExistsError, PyFileNotFoundError, PyIsADirectoryError, PyNotADirectoryError, PyOSError,
-    PyValueError,
+    PyPermissionError, PyValueError,
 };
 use pyo3::prelude::*;
 
@@ -49,117 +49,37 @@ fn options_from_settings(settings: &str, layout: Option<&str>) -> PyResult<Build
     Ok(options)
 }
 
-/// Writes `bytes` to `path` atomically: a temporary file beside it, flushed to disk, then
-/// renamed over `path` (`overwrite`) or hard-linked to it (which fails, atomically, if `path`
-/// exists). On any failure the temporary file is removed and `path` is left as it was.
-///
-/// A link to a file is written through (the file is replaced, the link kept). A device, pipe
-/// or socket is written into in place, with or without `overwrite`: renaming over it would put
-/// a regular file where it was (`/dev/null`, as root).
-fn write_atomically(path: &Path, bytes: &[u8], overwrite: bool) -> PyResult<()> {
-    let linked;
-    let path = match fs::metadata(path) {
-        Ok(meta) if meta.is_dir() => {
-            return Err(PyIsADirectoryError::new_err(format!(
-                "{}: cannot save the tree: it is a directory",
-                path.display()
-            )))
-        }
-        Ok(meta) if !meta.is_file() => {
-            return fs::OpenOptions::new()
-                .write(true)
-                .open(path)
-                .and_then(|mut file| file.write_all(bytes))
-                .map_err(|e| {
-                    PyOSError::new_err(format!("{}: cannot save the tree: {e}", path.display()))
-                });
-        }
-        Ok(_) if fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink()) => {
-            linked = fs::canonicalize(path).map_err(|e| {
-                PyOSError::new_err(format!("{}: cannot save the tree: {e}", path.display()))
-            })?;
-            linked.as_path()
-        }
-        _ => path,
-    };
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if !dir.is_dir() {
-        return Err(if dir.exists() {
-            PyNotADirectoryError::new_err(format!(
-                "{}: cannot save the tree: {} is not a directory",
-                path.display(),
-                dir.display()
-            ))
-        } else {
-            PyFileNotFoundError::new_err(format!(
-                "{}: cannot save the tree: directory {} does not exist",
-                path.display(),
-                dir.display()
-            ))
-        });
-    }
-    if !overwrite && path.exists() {
-        return Err(PyFileExistsError::new_err(format!(
-            "{}: the file exists; pass overwrite=True to replace it",
-            path.display()
-        )));
-    }
-    let name = path
-        .file_name()
-        .ok_or_else(|| PyValueError::new_err(format!("{}: not a file name", path.display())))?;
-    let mut tmp_name = std::ffi::OsString::from(".");
-    tmp_name.push(name);
-    tmp_name.push(format!(".tmp-{}", std::process::id()));
-    let tmp = path.with_file_name(tmp_name);
-    let fail = |e: std::io::Error, what: &str| {
-        let _ = fs::remove_file(&tmp);
-        PyOSError::new_err(format!(
-            "{}: cannot save the tree: {what}: {e}",
-            path.display()
-        ))
-    };
-    let mut file = fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&tmp)
-        .map_err(|e| {
-            PyOSError::new_err(format!(
-                "{}: cannot save the tree: cannot create {}: {e}",
-                path.display(),
-                tmp.display()
-            ))
-        })?;
-    file.write_all(bytes).map_err(|e| fail(e, "write"))?;
-    file.sync_all().map_err(|e| fail(e, "flush to disk"))?;
-    drop(file);
-    if overwrite {
-        fs::rename(&tmp, path).map_err(|e| fail(e, "rename"))?;
-    } else {
-        match fs::hard_link(&tmp, path) {
-            Ok(()) => {
-                let _ = fs::remove_file(&tmp);
-            }
-            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
-                let _ = fs::remove_file(&tmp);
-                return Err(PyFileExistsError::new_err(format!(
-                    "{}: the file exists; pass overwrite=True to replace it",
-                    path.display()
-                )));
-            }
-            Err(e) => return Err(fail(e, "link into place")),
-        }
-    }
-    Ok(())
-}
-
-/// Saves `bvh` (its mesh, tree and settings) to `path`.
+/// Saves `bvh` (its mesh, tree and settings) to `path` through the library's atomic writer
+/// ([`BvhFile::save`], as `hbv build` does), replacing a file only with `overwrite`.
 pub fn save(py: Python<'_>, bvh: &PyBvh, path: PathBuf, overwrite: bool) -> PyResult<()> {
     let file = bvh.to_file();
+    let replace = if overwrite {
+        Replace::Always
+    } else {
+        Replace::Never
+    };
     // Without the GIL: writing may block (a pipe waiting for its reader, a slow disk).
-    py.detach(|| write_atomically(&path, &file.to_bytes(), overwrite))
+    py.detach(|| file.save(&path, replace))
+        .map(|_bytes| ())
+        .map_err(|e| save_error(&path, e))
+}
+
+/// The Python exception of a failed save: the `OSError` subclass of its kind, with the writer's
+/// message (which names the path and the reason); a file in the way says how to replace it.
+fn save_error(path: &Path, e: io::Error) -> PyErr {
+    let message = format!("cannot save the tree: {e}");
+    match e.kind() {
+        io::ErrorKind::AlreadyExists => PyFileExistsError::new_err(format!(
+            "{}: the file exists; pass overwrite=True to replace it",
+            path.display()
+        )),
+        io::ErrorKind::NotFound => PyFileNotFoundError::new_err(message),
+        io::ErrorKind::NotADirectory => PyNotADirectoryError::new_err(message),
+        io::ErrorKind::IsADirectory => PyIsADirectoryError::new_err(message),
+        io::ErrorKind::PermissionDenied => PyPermissionError::new_err(message),
+        io::ErrorKind::InvalidInput => PyValueError::new_err(message),
+        _ => PyOSError::new_err(message),
+    }
 }
 
 /// Loads a BVH saved by `BVH.save` or `hbv build` (a `.hbv` file: mesh, tree and settings),
@@ -189,7 +109,7 @@ fn from_loaded(
     layout: Option<&str>,
 ) -> PyResult<PyBvh> {
     let file = loaded.map_err(|e| match &e.problem {
-        BvhFileProblem::Io(io) if io.kind() == std::io::ErrorKind::NotFound => {
+        BvhFileProblem::Io(cause) if cause.kind() == io::ErrorKind::NotFound => {
             pyo3::exceptions::PyFileNotFoundError::new_err(e.to_string())
         }
         BvhFileProblem::Io(_) => PyOSError::new_err(e.to_string()),
