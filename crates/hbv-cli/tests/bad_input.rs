@@ -678,6 +678,39 @@ fn absurd_thread_and_ray_counts_are_one_line() {
     }
 }
 
+/// `build-compare --rays 0` measured nothing and printed `± inf` and `-100.00%`; its counts and
+/// seed are now checked when the arguments are read, naming the flag and its range.
+#[test]
+fn build_compare_counts_are_checked_before_any_work() {
+    let cases = [
+        (
+            ["--rays", "0"],
+            "'--rays <RAYS>': expected 1 to 134217728 rays per set",
+        ),
+        (
+            ["--rays", "-5"],
+            "'--rays <RAYS>': expected 1 to 134217728 rays per set",
+        ),
+        (
+            ["--rays", "134217729"],
+            "expected 1 to 134217728 rays per set",
+        ),
+        (
+            ["--seed", "-1"],
+            "'--seed <SEED>': expected a whole number from 0 to",
+        ),
+    ];
+    for (args, reason) in cases {
+        let mut all = vec!["build-compare"];
+        all.extend(args);
+        let output = hbv(&all);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(stderr.contains(reason), "{args:?}: {stderr}");
+        assert!(output.stdout.is_empty(), "{args:?}");
+    }
+}
+
 /// Every numeric flag of `hbv experiment` is checked when the arguments are read, naming the
 /// flag and what it takes. A NaN displacement was blamed on the mesh ("triangle 0 has a
 /// coordinate that is not finite") after building its trees; `--lambda 0` and NaN ran. Negative
