@@ -1,5 +1,5 @@
 //! Hit files (closest hits: `hit`, `t`, `prim`, `u`, `v`) and occlusion files (`occluded`), as
-//! uncompressed `.npz` archives that `numpy.load` reads (see `shared/RAYS.md`).
+//! uncompressed `.npz` archives that `numpy.load` reads (see `docs/RAYS.md`).
 
 use std::io;
 use std::path::Path;

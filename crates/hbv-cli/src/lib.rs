@@ -1,5 +1,5 @@
 //! The library behind the `hbv` command line: reading ray files, writing hit files (the `.npz`
-//! formats of `shared/RAYS.md`), and replacing output files atomically.
+//! formats of `docs/RAYS.md`), and replacing output files atomically.
 
 pub mod hit_file;
 mod npy_header;

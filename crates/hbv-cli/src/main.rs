@@ -30,7 +30,7 @@ struct Cli {
 enum Command {
     /// Build a tree over a mesh (or the built-in scene) and report its shape and cost E[X].
     Info(commands::info::InfoArgs),
-    /// Trace a ray file against a mesh and write the hits (file formats: ../shared/RAYS.md).
+    /// Trace a ray file against a mesh and write the hits (file formats: docs/RAYS.md).
     Trace(commands::trace::TraceArgs),
     /// Measure rays per second of every layout on camera, diffuse and shadow rays.
     Bench(commands::bench::BenchArgs),

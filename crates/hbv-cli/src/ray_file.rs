@@ -1,5 +1,5 @@
 //! Reading ray files: `.npz` archives with members `origins`, `directions` and optionally `tmin`,
-//! `tmax` (see `shared/RAYS.md`).
+//! `tmax` (see `docs/RAYS.md`).
 
 use std::fmt;
 use std::fs::File;
@@ -449,7 +449,7 @@ fn read_rows(
     npz.rows(name, a, cols)
 }
 
-/// Reads the rays of a ray file (see `shared/RAYS.md`).
+/// Reads the rays of a ray file (see `docs/RAYS.md`).
 ///
 /// Members: `origins` (N, 3); `directions` (N, 3), or `dirs` where `directions` is absent;
 /// optionally `tmin` and `tmax` (N,), which default to 0 and +inf. Each may be float32 or float64

@@ -1,4 +1,4 @@
-//! Ray, hit and occlusion files (`shared/RAYS.md`).
+//! Ray, hit and occlusion files (`docs/RAYS.md`).
 
 use std::fs::{self, File};
 use std::path::Path;

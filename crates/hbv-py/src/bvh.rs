@@ -180,7 +180,7 @@ impl PyBvh {
     }
 
     /// Closest hits: a dict of arrays `hit` (bool), `t` (float32, inf on a miss), `prim`
-    /// (int64, -1 on a miss), `u`, `v` (float32 barycentrics, 0 on a miss), as ../shared/RAYS.md.
+    /// (int64, -1 on a miss), `u`, `v` (float32 barycentrics, 0 on a miss), as docs/RAYS.md.
     #[pyo3(signature = (origins, directions, tmin=None, tmax=None, threads=None))]
     fn intersect<'py>(
         &self,

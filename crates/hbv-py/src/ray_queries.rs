@@ -143,7 +143,7 @@ fn set_bounds(
 }
 
 /// Closest hits: a dict of arrays `hit` (bool), `t` (float32, inf on a miss), `prim` (int64,
-/// -1 on a miss), `u`, `v` (float32 barycentrics, 0 on a miss), as ../shared/RAYS.md.
+/// -1 on a miss), `u`, `v` (float32 barycentrics, 0 on a miss), as docs/RAYS.md.
 pub fn closest_hits<'py>(
     py: Python<'py>,
     accel: &dyn Accelerator,

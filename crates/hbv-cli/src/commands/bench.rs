@@ -60,7 +60,7 @@ pub struct BenchArgs {
     #[arg(long)]
     pub json: bool,
     /// Write the ray sets to DIR as primary.npz, diffuse.npz and shadow.npz (ray files of
-    /// ../shared/RAYS.md) and stop, without building or tracing.
+    /// docs/RAYS.md) and stop, without building or tracing.
     #[arg(long = "write-rays", value_name = "DIR")]
     pub write_rays: Option<PathBuf>,
     /// With --write-rays: replace ray files that exist (without this, an existing file is an

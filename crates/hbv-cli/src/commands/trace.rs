@@ -1,4 +1,4 @@
-//! `hbv trace`: a ray file in, a hit file out (formats of `../shared/RAYS.md`).
+//! `hbv trace`: a ray file in, a hit file out (formats of `docs/RAYS.md`).
 
 use std::path::PathBuf;
 use std::time::Instant;

@@ -5,7 +5,7 @@ use super::Aabb;
 /// A ray `o + t d` with its valid interval: a hit at `t` counts when `tmin <= t <= tmax`.
 ///
 /// `direction` need not be unit length; `t` is measured in its units (as in Embree and
-/// `../shared/RAYS.md`).
+/// `docs/RAYS.md`).
 ///
 /// `repr(C)`: eight floats in this order, which the wide layouts' batches read eight rays at a
 /// time as the rows of a matrix.
