@@ -88,6 +88,31 @@ mod tests {
         assert!((face.u - 0.25).abs() < 1e-15 && (face.v - 0.25).abs() < 1e-15);
     }
 
+    /// A known defect, found by a soak run of the property tests (session 16): for a sliver
+    /// whose third vertex lies within 10⁻⁸ of the midpoint of its longest edge, the scaled
+    /// barycentrics `va`, `vb`, `vc` are rounding noise, and the face region's division turns
+    /// them into a point 1.32 away from a query that lies on the triangle (1.2·10⁻⁸ away). The
+    /// answer depends on the vertices' order (1.32, 1.2·10⁻⁸, 0.085 for the three rotations).
+    /// The brute force shares the routine, so the tree and grid agree with it except where the
+    /// grid's list proof meets the wrong distances (the failing case). Fixing it needs a
+    /// sliver path with exact or extended-precision arithmetic, in the scalar routine and the
+    /// lanes alike; ignored until then.
+    #[test]
+    #[ignore = "known defect: slivers of relative height ~1e-8 (see the comment)"]
+    fn a_query_on_a_sliver_is_at_distance_zero() {
+        let v = |x: f32, y: f32, z: f32| DVec3::new(x as f64, y as f64, z as f64);
+        let (a, b, c) = (
+            v(0.49198264, -0.9902859, -0.973578),
+            v(-0.19071285, 0.95109224, -0.17421271),
+            v(0.15063488, -0.019596815, -0.57389534),
+        );
+        let p = v(-0.14524573, 0.8217976, -0.22744995);
+        for (x, y, z) in [(a, b, c), (b, c, a), (c, a, b)] {
+            let q = closest_point_on_triangle(p, x, y, z);
+            assert!((q.point - p).length() < 1e-7, "{q:?}");
+        }
+    }
+
     #[test]
     fn barycentrics_reproduce_the_point() {
         for p in [
