@@ -120,7 +120,7 @@ fn two_sum(a: f64, b: f64) -> (f64, f64) {
 /// `|a b| < 2^996`). A fused multiply-add would take one instruction, but the library is built
 /// for baseline x86-64, where `f64::mul_add` is a software routine ten times this cost.
 #[inline]
-fn two_product(a: f64, b: f64) -> (f64, f64) {
+pub(crate) fn two_product(a: f64, b: f64) -> (f64, f64) {
     let product = a * b;
     let (a_high, a_low) = split(a);
     let (b_high, b_low) = split(b);

@@ -2,7 +2,7 @@
 
 mod aabb;
 mod edge_rule;
-mod exact_sign;
+pub(crate) mod exact_sign;
 mod ray;
 mod triangle;
 

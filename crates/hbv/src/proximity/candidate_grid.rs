@@ -32,7 +32,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::directed_rounding::f32_below;
-use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
+use super::point_triangle::{closest_point_on_flagged_triangle, TrianglePoint};
 use super::prefetch::prefetch;
 
 /// Settings of the candidate grid that `closest_point` queries use on meshes of a few large
@@ -103,6 +103,8 @@ struct Candidate {
 pub(super) struct ListedTriangle {
     pub vertices: [DVec3; 3],
     pub prim: u32,
+    /// `point_triangle::is_sliver` of the vertices.
+    pub sliver: bool,
 }
 
 /// A query point's cell ([`CandidateGrid::locate`]): its index in the grid's cells, its
@@ -400,7 +402,7 @@ fn decide(
     best_d2: &mut f64,
 ) {
     let [a, b, c] = t.vertices;
-    let q = closest_point_on_triangle(p, a, b, c);
+    let q = closest_point_on_flagged_triangle(p, a, b, c, t.sliver);
     let d2 = (p - q.point).length_squared();
     if d2 < *best_d2 || (d2 == *best_d2 && best.is_some_and(|(_, b)| t.prim < b)) {
         *best_d2 = d2;

@@ -10,7 +10,10 @@ use super::box_bound::{prune_threshold, rounding_margin, PointBracket};
 use super::candidate_grid::{
     CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, Located, NearestTriangles,
 };
-use super::point_triangle::{closest_point_on_triangle, TrianglePoint};
+use super::point_triangle::{
+    closest_point_on_flagged_triangle, closest_point_on_sliver, closest_point_on_triangle,
+    TrianglePoint,
+};
 use super::point_triangle_lanes::F64_LANES;
 use super::prefetch::prefetch;
 use super::query_order::morton_order;
@@ -847,7 +850,24 @@ impl ClosestPointTree {
     #[inline(always)]
     fn consider_half<M: SearchLanes>(&self, p: DVec3, packet: usize, half: usize, best: &mut Best) {
         let data = &self.tree.packets[packet];
-        let found = M::closest_points_on_half(p, &data.vertex, half);
+        let mut found = M::closest_points_on_half(p, &data.vertex, half);
+        // Slivers (rare) are decided again by the scalar routine, whose sliver path the lanes
+        // do not have.
+        let slivers = data.slivers >> (half * F64_LANES) & ((1 << F64_LANES) - 1);
+        if slivers != 0 {
+            for l in 0..F64_LANES {
+                if slivers >> l & 1 == 1 {
+                    let [a, b, c] = data.triangle(half * F64_LANES + l);
+                    let q = closest_point_on_sliver(p, a, b, c);
+                    for axis in 0..3 {
+                        found.point[axis][l] = q.point[axis];
+                    }
+                    found.u[l] = q.u;
+                    found.v[l] = q.v;
+                    found.distance_squared[l] = (p - q.point).length_squared();
+                }
+            }
+        }
         for l in 0..F64_LANES {
             let lane = half * F64_LANES + l;
             let (d2, prim) = (found.distance_squared[l], data.prim[lane]);
@@ -870,7 +890,7 @@ impl ClosestPointTree {
         let lane = local as usize % LANES;
         let [a, b, c] = packet.triangle(lane);
         let prim = packet.prim[lane];
-        let q = closest_point_on_triangle(p, a, b, c);
+        let q = closest_point_on_flagged_triangle(p, a, b, c, packet.slivers >> lane & 1 == 1);
         let d2 = (p - q.point).length_squared();
         if best.is_beaten_by(d2, prim) {
             best.record(q, d2, prim, local);
@@ -959,6 +979,7 @@ impl NearestTriangles for ClosestPointTree {
         ListedTriangle {
             vertices: packet.triangle(lane),
             prim: packet.prim[lane],
+            sliver: packet.slivers >> lane & 1 == 1,
         }
     }
 }

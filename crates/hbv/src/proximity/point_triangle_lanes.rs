@@ -388,7 +388,7 @@ mod tests {
     use proptest::prelude::*;
 
     use super::*;
-    use crate::proximity::point_triangle::closest_point_on_triangle;
+    use crate::proximity::point_triangle::closest_point_by_regions;
 
     /// Every lane equals the scalar routine, bit for bit (`u`, `v`, the point and `|p - q|²`),
     /// in both halves of a packet (the triangles in order, then reversed), in the portable
@@ -429,7 +429,7 @@ mod tests {
                 } else {
                     LANES - 1 - lane
                 }];
-                let q = closest_point_on_triangle(p, a, b, c);
+                let q = closest_point_by_regions(p, a, b, c);
                 let d2 = (p - q.point).length_squared();
                 let got = DVec3::new(lanes.point[0][l], lanes.point[1][l], lanes.point[2][l]);
                 let bits = |x: f64| x.to_bits();

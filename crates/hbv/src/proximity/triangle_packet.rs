@@ -10,6 +10,7 @@
 use glam::DVec3;
 
 use super::box_bound::{Box4, PointBracket};
+use super::point_triangle::is_sliver;
 use super::triangle_enclosure::TriangleEnclosure;
 
 /// Triangles side by side in a packet: eight, one AVX register of f32 (two SSE registers
@@ -29,6 +30,10 @@ pub(super) struct TrianglePacket {
     /// is then tighter than the enclosure's beside a vertex (walls and floors of modelled
     /// scenes).
     pub axis_aligned: bool,
+    /// Lanes whose triangle is a sliver (`point_triangle::is_sliver`), one bit each: the lanes'
+    /// region routine is not for them, and the search decides them with the scalar sliver
+    /// routine instead.
+    pub slivers: u8,
     /// The enclosures: `centre[axis][lane]`, `normal[axis][lane]`, `thickness[lane]`,
     /// `radius[lane]`, `edge_normal[edge][axis][lane]`, `edge_offset[edge][lane]`,
     /// `reach_slack[lane]`.
@@ -50,6 +55,7 @@ impl TrianglePacket {
             axis_aligned: triangles
                 .iter()
                 .any(|(_, [a, b, c])| (0..3).any(|i| a[i] == b[i] && b[i] == c[i])),
+            slivers: 0,
             centre: [[0.0; LANES]; 3],
             normal: [[0.0; LANES]; 3],
             thickness: [0.0; LANES],
@@ -65,6 +71,10 @@ impl TrianglePacket {
                 for axis in 0..3 {
                     packet.vertex[k][axis][lane] = vertex[axis];
                 }
+            }
+            let [a, b, c] = v.map(|x| x.as_dvec3());
+            if is_sliver(a, b, c) {
+                packet.slivers |= 1 << lane;
             }
             let e = TriangleEnclosure::around(v);
             for axis in 0..3 {
