@@ -78,6 +78,8 @@ const SLIVER_AREA: f64 = 1.0 / (1u64 << 20) as f64;
 /// 33 significant bits, whose products round) tilted the plane of a sliver 4·10⁻⁹ wide by
 /// 2.5·10⁻⁸, and a point 0.5 above it came out 0.4999999964 away. The inside test takes signs
 /// of `n · (edge × (q − vertex))`.
+#[cold]
+#[inline(never)]
 pub(super) fn closest_point_on_sliver(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> TrianglePoint {
     let (ab, ac) = (b - a, c - a);
     let difference_of_products = |w: f64, x: f64, y: f64, z: f64| {
