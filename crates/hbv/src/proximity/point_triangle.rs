@@ -25,7 +25,7 @@ pub struct TrianglePoint {
 ///
 /// The triangle must not be degenerate (zero area): the face region divides by `va + vb + vc`.
 ///
-/// A sliver ([`is_sliver`]) takes [`closest_point_on_sliver`] instead: there `va`, `vb`, `vc`
+/// A sliver (`is_sliver`) takes `closest_point_on_sliver` instead: there `va`, `vb`, `vc`
 /// are differences of nearly equal products, and can be rounding noise whose signs pick a wrong
 /// region and whose quotient a point far from the answer (1.32 away from a query lying on a
 /// triangle whose third vertex was within 10⁻⁸ of the midpoint of its longest edge).
