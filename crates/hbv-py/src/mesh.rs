@@ -39,11 +39,12 @@ impl PyMesh {
     }
 
     /// Issues a RuntimeWarning, attributed to the Python caller of `query`, when the mesh is
-    /// not closed: inside tests are not defined near its open edges.
-    pub fn warn_if_open(&self, py: Python<'_>, query: &str) -> PyResult<()> {
+    /// not closed: inside tests are not defined near its open edges. Returns whether it is
+    /// closed.
+    pub fn warn_if_open(&self, py: Python<'_>, query: &str) -> PyResult<bool> {
         let open = self.open_edge_count(py);
         if open == 0 {
-            return Ok(());
+            return Ok(true);
         }
         let message = format!(
             "{query}: the mesh is not closed ({open} open edges, each shared by an odd number \
@@ -51,7 +52,8 @@ impl PyMesh {
              there may be answered either way (see Mesh.open_edges)"
         );
         let message = CString::new(message).expect("no NUL in the message");
-        PyErr::warn(py, &py.get_type::<PyRuntimeWarning>(), &message, 1)
+        PyErr::warn(py, &py.get_type::<PyRuntimeWarning>(), &message, 1)?;
+        Ok(false)
     }
 }
 

@@ -290,8 +290,7 @@ pub fn inside<'py, 's, A: AllHits + ?Sized + 's>(
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<bool>>> {
     let (points, rows) = float_array("points", points, Some(3), None)?;
-    mesh.warn_if_open(py, "contains")?;
-    let closed = mesh.open_edge_count(py) == 0;
+    let closed = mesh.warn_if_open(py, "contains")?;
     let points = points.values();
     let mut result = vec![false; rows];
     py.detach(|| {

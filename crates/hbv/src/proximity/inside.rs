@@ -4,6 +4,7 @@ use glam::Vec3;
 
 use crate::all_hits::AllHits;
 use crate::geometry::Ray;
+use crate::query::Hit;
 
 /// The directions of the inside tests' rays: no axis-aligned component and no small rational
 /// ratios between components, so that rays from the points of a grid-aligned or symmetric mesh
@@ -39,8 +40,7 @@ pub fn contains<A: AllHits + ?Sized>(accel: &A, point: Vec3) -> bool {
 /// gives the same answer for a point off the surface of a closed mesh; a zero, NaN or
 /// infinite direction (no ray) says outside.
 pub fn contains_along<A: AllHits + ?Sized>(accel: &A, point: Vec3, direction: Vec3) -> bool {
-    let ray = Ray::new(point, direction);
-    point.is_finite() && ray.is_valid() && accel.count_hits(&ray) % 2 == 1
+    odd_crossings(accel, point, direction, &mut Vec::new())
 }
 
 /// Whether `point` is inside by the majority of three rays' parities (the third cast only when
@@ -50,11 +50,29 @@ pub fn contains_along<A: AllHits + ?Sized>(accel: &A, point: Vec3, direction: Ve
 /// is inside unless two of its rays leave through the gap. On a closed mesh it answers as
 /// [`contains`] does, at twice the cost.
 pub fn contains_by_majority<A: AllHits + ?Sized>(accel: &A, point: Vec3) -> bool {
-    let [first, second, third] = RAY_DIRECTIONS.map(|d| move || contains_along(accel, point, d));
-    let (first, second) = (first(), second());
+    // One list of hits for the three rays.
+    let mut hits = Vec::new();
+    let mut vote = |direction| odd_crossings(accel, point, direction, &mut hits);
+    let (first, second) = (vote(RAY_DIRECTIONS[0]), vote(RAY_DIRECTIONS[1]));
     if first == second {
         first
     } else {
-        third()
+        vote(RAY_DIRECTIONS[2])
     }
+}
+
+/// Whether the ray from `point` along `direction` crosses the surface an odd number of times
+/// (false for no valid ray), `hits` holding its hits.
+fn odd_crossings<A: AllHits + ?Sized>(
+    accel: &A,
+    point: Vec3,
+    direction: Vec3,
+    hits: &mut Vec<Hit>,
+) -> bool {
+    let ray = Ray::new(point, direction);
+    if !(point.is_finite() && ray.is_valid()) {
+        return false;
+    }
+    accel.all_hits(&ray, hits);
+    hits.len() % 2 == 1
 }
