@@ -3,12 +3,12 @@
 use std::path::Path;
 
 use hbv::bvh::build::{BinnedSahBuilder, Builder};
-use hbv::bvh::layout::{OrderedLayout, SkipLayout, Wide4Layout, Wide8Layout};
 use hbv::geometry::Ray;
 use hbv::glam::Vec3;
-use hbv::{Accelerator, BruteForce, TriangleMesh};
+use hbv::TriangleMesh;
 
 mod common;
+use common::every_accelerator;
 
 /// A camera ray that grazes a silhouette of the Spot mesh. In exact rational arithmetic it passes
 /// inside two folded triangles (551 by 1e-6 and 3479 by 2e-5, in barycentric terms); with the
@@ -37,14 +37,7 @@ fn grazing_silhouette_ray_on_spot_hits() {
     let ray = Ray::new(f32s(origin), f32s(direction));
     assert_eq!(ray.origin.x as f64, origin[0], "the literal is an f32");
     let tree = BinnedSahBuilder::default().build(&mesh);
-    let accelerators: Vec<(&str, Box<dyn Accelerator>)> = vec![
-        ("brute force", Box::new(BruteForce::new(&mesh))),
-        ("skip", Box::new(SkipLayout::new(&tree, &mesh))),
-        ("ordered", Box::new(OrderedLayout::new(&tree, &mesh))),
-        ("wide4", Box::new(Wide4Layout::new(&tree, &mesh))),
-        ("wide8", Box::new(Wide8Layout::new(&tree, &mesh))),
-    ];
-    for (name, accel) in accelerators {
+    for (name, accel) in every_accelerator(&tree, &mesh) {
         let hit = accel
             .intersect(&ray)
             .unwrap_or_else(|| panic!("{name} misses"));
@@ -132,20 +125,6 @@ fn rays_in_a_slanted_triangle_s_plane_miss_it() {
             );
         }
     }
-}
-
-/// Brute force and every layout over `tree`, by name.
-fn every_accelerator(
-    tree: &hbv::bvh::BuildTree,
-    mesh: &TriangleMesh,
-) -> Vec<(&'static str, Box<dyn Accelerator>)> {
-    vec![
-        ("brute force", Box::new(BruteForce::new(mesh))),
-        ("skip", Box::new(SkipLayout::new(tree, mesh))),
-        ("ordered", Box::new(OrderedLayout::new(tree, mesh))),
-        ("wide4", Box::new(Wide4Layout::new(tree, mesh))),
-        ("wide8", Box::new(Wide8Layout::new(tree, mesh))),
-    ]
 }
 
 /// The ray parameter where the line `o + t d` meets the triangle's plane, in f64 (the

@@ -3,7 +3,7 @@
 //! closest- and any-hit queries, and a crossing is counted once by the all-hits queries.
 
 use hbv::bvh::build::{BinnedSahBuilder, Builder, InsertionBuilder, InsertionConfig};
-use hbv::bvh::layout::{OrderedLayout, SkipLayout, Wide4Layout, Wide8Layout};
+use hbv::bvh::layout::{Wide4Layout, Wide8Layout};
 use hbv::geometry::Ray;
 use hbv::glam::Vec3;
 use hbv::grid::{GridConfig, UniformGrid};
@@ -119,20 +119,15 @@ fn all_hits_structures(mesh: &TriangleMesh) -> Vec<(&'static str, Box<dyn AllHit
     ]
 }
 
-/// Brute force and every layout of a binned-SAH tree.
+/// Brute force, every layout of a binned-SAH tree, and the uniform grid.
 fn accelerators(mesh: &TriangleMesh) -> Vec<(&'static str, Box<dyn Accelerator>)> {
     let tree = BinnedSahBuilder::default().build(mesh);
-    vec![
-        ("brute force", Box::new(BruteForce::new(mesh))),
-        ("skip", Box::new(SkipLayout::new(&tree, mesh))),
-        ("ordered", Box::new(OrderedLayout::new(&tree, mesh))),
-        ("wide4", Box::new(Wide4Layout::new(&tree, mesh))),
-        ("wide8", Box::new(Wide8Layout::new(&tree, mesh))),
-        (
-            "grid",
-            Box::new(UniformGrid::new(mesh, GridConfig::default())),
-        ),
-    ]
+    let mut all = common::every_accelerator(&tree, mesh);
+    all.push((
+        "grid",
+        Box::new(UniformGrid::new(mesh, GridConfig::default())),
+    ));
+    all
 }
 
 /// The points a ray may be aimed at: every vertex, and points along every edge at quarters

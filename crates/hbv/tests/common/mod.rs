@@ -13,6 +13,21 @@ use proptest::prelude::*;
 mod cases;
 pub use cases::cases;
 
+/// Brute force and every layout over `tree`, by name.
+pub fn every_accelerator(
+    tree: &hbv::bvh::BuildTree,
+    mesh: &TriangleMesh,
+) -> Vec<(&'static str, Box<dyn Accelerator>)> {
+    use hbv::bvh::layout::{OrderedLayout, SkipLayout, Wide4Layout, Wide8Layout};
+    vec![
+        ("brute force", Box::new(BruteForce::new(mesh))),
+        ("skip", Box::new(SkipLayout::new(tree, mesh))),
+        ("ordered", Box::new(OrderedLayout::new(tree, mesh))),
+        ("wide4", Box::new(Wide4Layout::new(tree, mesh))),
+        ("wide8", Box::new(Wide8Layout::new(tree, mesh))),
+    ]
+}
+
 /// Asserts that `accel` and brute force agree on every ray: closest hits identical (same `t`,
 /// same `prim` under the shared tie rule, same barycentrics), any-hit identical.
 pub fn assert_agrees(
