@@ -14,7 +14,8 @@ prints, per mesh and ray set, each build's ratio to embreex and to the first bui
 checking that every build answers alike. `--ray-dir DIR` traces the ray files DIR/MESH/*.npz of
 `hbv bench MESH --write-rays DIR/MESH` with their intervals (rays that leave a surface);
 `--query intersect_all|count|contains` times the every-hit queries against the first build
-(`contains` on python_compare.py's query points, one per ray of the set).
+(`contains` on python_compare.py's query points, one per ray of the set). `--threads N` (or
+`all`) gives hbv's calls `threads=`; embreex stays on one thread.
 """
 
 import argparse
@@ -88,10 +89,14 @@ def main():
     parser.add_argument("--scenes", default=str(Path(__file__).parents[1] / ".." / "shared" / "scenes"))
     parser.add_argument("--rays", type=int, default=262144)
     parser.add_argument("--rounds", type=int, default=15)
+    parser.add_argument("--threads", default="1",
+                        help="threads= of hbv's calls: a count, or 'all' for None (every core); "
+                        "default 1. embreex runs on one thread whatever this says")
     parser.add_argument("--query", choices=["intersect", "occluded", *EVERY_HIT], default="intersect")
     parser.add_argument("--ray-dir", help="trace the ray files RAY_DIR/MESH/*.npz (with their "
                         "intervals) instead of python_compare.py's sets")
     args = parser.parse_args()
+    threads = None if args.threads == "all" else int(args.threads)
 
     from embreex import rtcore_scene
     from embreex.mesh_construction import TriangleMesh as EmbreeMesh
@@ -115,7 +120,7 @@ def main():
                 "embreex": embree_call(embree, args.query, o, d, tmin, tmax)}
             for name, bvh in zip(names, bvhs):
                 calls[name] = (lambda b: lambda: getattr(b, args.query)(
-                    *query_args, **bounds, threads=1))(bvh)
+                    *query_args, **bounds, threads=threads))(bvh)
             answers = {name: call() for name, call in calls.items()}
             for name in names[1:]:
                 if not same_answers(answers[names[0]], answers[name]):

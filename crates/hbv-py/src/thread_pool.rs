@@ -10,6 +10,8 @@
 
 use std::sync::{Arc, Mutex};
 
+use hbv::batch_threads::SpanQueue;
+
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyInt};
@@ -149,7 +151,9 @@ impl<A: Rows, B: Rows> Rows for (A, B) {
 
 /// Fills `rows` with `fill(first_row, rows)`: on the calling thread alone for `threads = Some(1)`
 /// or at most [`SERIAL_ROWS`] rows; otherwise cut into runs of [`GRAIN`] rows that the calling
-/// thread and a pool of `threads - 1` threads (one per core but one for `None`) take in turn.
+/// thread and a pool of `threads - 1` threads (one per core but one for `None`) take in spans
+/// of consecutive runs, one per thread (`hbv::batch_threads::SpanQueue`: neighbouring rays
+/// visit the same nodes, which then stay in one core's cache).
 ///
 /// The calling thread starts on the first run at once, and the pool's threads join as they
 /// wake: on a virtual machine a sleeping thread can take up to a millisecond to run, and the
@@ -161,36 +165,32 @@ pub fn fill_rows<R: Rows>(
     rows: R,
     fill: impl Fn(usize, R) + Sync + Send,
 ) -> PyResult<()> {
-    if one_thread(threads) || rows.rows() <= SERIAL_ROWS {
+    let workers = threads.map_or_else(rayon::current_num_threads, ThreadCount::get);
+    if workers == 1 || rows.rows() <= SERIAL_ROWS {
         fill(0, rows);
         return Ok(());
     }
-    let runs = Mutex::new(runs_of(rows).into_iter());
-    let take_runs = || loop {
-        let next = runs
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner())
-            .next();
-        match next {
-            Some((first, run)) => fill(first, run),
-            None => break,
+    let queue = SpanQueue::new(runs_of(rows), workers);
+    let take_runs = |worker: usize| {
+        while let Some((first, run)) = queue.next(worker) {
+            fill(first, run);
         }
     };
-    let helpers = threads.map_or_else(rayon::current_num_threads, ThreadCount::get) - 1;
-    if helpers == 0 {
-        take_runs();
-        return Ok(());
-    }
-    pool_of(helpers)?.in_place_scope(|scope| beside_caller(scope, helpers, &take_runs));
+    pool_of(workers - 1)?.in_place_scope(|scope| beside_caller(scope, workers - 1, &take_runs));
     Ok(())
 }
 
-/// Runs `work` on the calling thread and on `helpers` of the scope's pool threads.
-fn beside_caller<'s>(scope: &rayon::Scope<'s>, helpers: usize, work: &'s (impl Fn() + Sync)) {
-    for _ in 0..helpers {
-        scope.spawn(move |_| work());
+/// Runs `work(worker)` on the calling thread (worker 0) and on `helpers` of the scope's pool
+/// threads (workers 1 to `helpers`).
+fn beside_caller<'s>(
+    scope: &rayon::Scope<'s>,
+    helpers: usize,
+    work: &'s (impl Fn(usize) + Sync),
+) {
+    for worker in 1..=helpers {
+        scope.spawn(move |_| work(worker));
     }
-    work();
+    work(0);
 }
 
 /// `rows` cut into runs of [`GRAIN`] rows (the last one shorter), each with its first row.

@@ -47,7 +47,7 @@ pub use brute_force::BruteForce;
 
 pub mod all_hits;
 pub mod atomic_file;
-mod batch_threads;
+pub mod batch_threads;
 pub mod proximity;
 
 pub use all_hits::AllHits;
