@@ -43,6 +43,21 @@ fn a_file_is_replaced_only_when_asked() {
     assert_eq!(entries(dir.path()), vec![path]);
 }
 
+/// A target whose name is as long as a file name may be (255 bytes) is written: the temporary
+/// file's name, the target's with a dot and a suffix, is cut short to fit (it was refused as
+/// too long). Both modes, and a name of multi-byte characters.
+#[test]
+fn a_name_of_the_longest_length_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    for name in ["n".repeat(255), "é".repeat(127)] {
+        let path = dir.path().join(&name);
+        write_atomically(&path, Replace::Never, |f| f.write_all(b"first")).unwrap();
+        write_atomically(&path, Replace::Always, |f| f.write_all(b"second")).unwrap();
+        assert_eq!(fs::read(&path).unwrap(), b"second");
+    }
+    assert_eq!(entries(dir.path()).len(), 2, "no temporary left behind");
+}
+
 /// A symbolic link is written through: its target gets the new contents, the link stays a link.
 /// Without replacing, a link to a file and a dangling link are both something in the way.
 #[cfg(unix)]

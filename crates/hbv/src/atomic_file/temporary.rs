@@ -34,7 +34,8 @@ pub fn remove_temporaries() {
 }
 
 /// A temporary file `.{name}.tmp-{pid}-{n}` in the target's folder (so that the rename or link
-/// that puts it in place stays on one file system). Dropped, it is removed.
+/// that puts it in place stays on one file system), `name` shortened where the whole would be
+/// too long a file name. Dropped, it is removed.
 pub(super) struct Temporary {
     path: PathBuf,
 }
@@ -45,14 +46,12 @@ impl Temporary {
     pub(super) fn create(dir: &Path, name: &OsStr) -> io::Result<(Temporary, File)> {
         let mut tries = 0;
         loop {
-            let mut file_name = OsString::from(".");
-            file_name.push(name);
-            file_name.push(format!(
+            let suffix = format!(
                 ".tmp-{}-{}",
                 std::process::id(),
                 COUNTER.fetch_add(1, Ordering::Relaxed)
-            ));
-            let path = dir.join(file_name);
+            );
+            let path = dir.join(temporary_name(name, &suffix));
             match OpenOptions::new().write(true).create_new(true).open(&path) {
                 Ok(file) => {
                     in_progress().push(path.clone());
@@ -81,6 +80,42 @@ impl Drop for Temporary {
     fn drop(&mut self) {
         let _ = fs::remove_file(&self.path);
         unregister(&self.path);
+    }
+}
+
+/// The longest file name of the common file systems (ext4, XFS, APFS, NTFS: 255 bytes, or
+/// UTF-16 units, which a UTF-8 name has at most as many of as bytes).
+const NAME_MAX: usize = 255;
+
+/// `.{name}{suffix}`, with `name` cut short so that the whole fits in [`NAME_MAX`] bytes: a
+/// target whose own name is near the limit can still be written (its temporary name would
+/// otherwise be refused as too long). The suffix keeps the names unique.
+fn temporary_name(name: &OsStr, suffix: &str) -> OsString {
+    let room = NAME_MAX.saturating_sub(1 + suffix.len());
+    let mut file_name = OsString::from(".");
+    file_name.push(shortened(name, room));
+    file_name.push(suffix);
+    file_name
+}
+
+/// The first `room` bytes of `name` at most.
+#[cfg(unix)]
+fn shortened(name: &OsStr, room: usize) -> &OsStr {
+    use std::os::unix::ffi::OsStrExt;
+    let bytes = name.as_bytes();
+    OsStr::from_bytes(&bytes[..bytes.len().min(room)])
+}
+
+/// The first `room` bytes of `name` at most, cut between characters (a name that is not
+/// Unicode is kept whole).
+#[cfg(not(unix))]
+fn shortened(name: &OsStr, room: usize) -> &OsStr {
+    match name.to_str() {
+        Some(text) if text.len() > room => {
+            let end = (0..=room).rev().find(|&k| text.is_char_boundary(k)).unwrap_or(0);
+            OsStr::new(&text[..end])
+        }
+        _ => name,
     }
 }
 
