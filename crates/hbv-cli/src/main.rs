@@ -4,7 +4,7 @@ mod commands;
 
 use std::process::ExitCode;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 /// mimalloc rather than the C library's allocator. After a build over a large mesh, glibc
 /// coalesces the build's many freed small blocks at the next large request, the trace's answer
@@ -47,6 +47,19 @@ enum Command {
     Render(commands::render::RenderArgs),
 }
 
+/// `command` with every flag of it and of its subcommands taking a value that looks like a
+/// negative number: `--rays -5` is then refused by the flag's own check, which names the flag
+/// and what it takes, instead of being read as an unknown flag `-5`.
+fn negative_numbers_as_values(command: clap::Command) -> clap::Command {
+    command
+        .mut_args(|arg| {
+            // (Only arguments that take a value may: clap asserts it of switches.)
+            let takes_value = arg.get_action().takes_values();
+            arg.allow_negative_numbers(takes_value)
+        })
+        .mut_subcommands(negative_numbers_as_values)
+}
+
 fn main() -> ExitCode {
     // Like every Unix filter: a reader that closes the pipe (`hbv ... | head`) ends the program
     // quietly instead of making each `println!` fail.
@@ -76,7 +89,8 @@ fn main() -> ExitCode {
             .unwrap_or_else(|| "unknown cause".into());
         eprintln!("hbv: internal error{location}: {message} (please report it)");
     }));
-    let cli = Cli::parse();
+    let cli = Cli::from_arg_matches(&negative_numbers_as_values(Cli::command()).get_matches())
+        .unwrap_or_else(|e| e.exit());
     let result = match cli.command {
         Command::Info(args) => commands::info::run(&args),
         Command::Trace(args) => commands::trace::run(&args),

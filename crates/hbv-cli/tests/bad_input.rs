@@ -785,6 +785,35 @@ fn experiment_flags_are_checked_before_any_work() {
     }
 }
 
+/// A negative number given to any numeric flag of any command is refused for its value, naming
+/// the flag (it was read as an unknown flag: `unexpected argument '-5' found`).
+#[test]
+fn negative_numbers_are_refused_as_values_of_every_command() {
+    let cases: &[&[&str]] = &[
+        &["bench", "--rays", "-5"],
+        &["bench", "--threads", "-1"],
+        &["bench", "--repeat", "-2"],
+        &["trace", "--threads", "-2", "mesh.ply", "rays.npz"],
+        &["render", "--width", "-3"],
+        &["info", "--seed", "-1"],
+        &["info", "--leaf-size", "-4"],
+        &["build-compare", "--rays", "-7"],
+    ];
+    for args in cases {
+        let output = hbv(args);
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(2), "{args:?}: {stderr}");
+        assert!(
+            stderr.starts_with(&format!(
+                "error: invalid value '{}' for '{} <",
+                args[2], args[1]
+            )),
+            "{args:?}: {stderr}"
+        );
+        assert!(output.stdout.is_empty(), "{args:?} ran");
+    }
+}
+
 #[cfg(unix)]
 #[test]
 fn read_only_output_folder_is_one_line_unless_privileged() {

@@ -182,11 +182,7 @@ pub fn fill_rows<R: Rows>(
 
 /// Runs `work(worker)` on the calling thread (worker 0) and on `helpers` of the scope's pool
 /// threads (workers 1 to `helpers`).
-fn beside_caller<'s>(
-    scope: &rayon::Scope<'s>,
-    helpers: usize,
-    work: &'s (impl Fn(usize) + Sync),
-) {
+fn beside_caller<'s>(scope: &rayon::Scope<'s>, helpers: usize, work: &'s (impl Fn(usize) + Sync)) {
     for worker in 1..=helpers {
         scope.spawn(move |_| work(worker));
     }

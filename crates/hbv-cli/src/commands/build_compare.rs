@@ -28,7 +28,7 @@ pub struct BuildCompareArgs {
     pub mesh: Option<PathBuf>,
     /// Isotropic lines, and real rays of each kind, to count tests on (1 to 2^27; none gave
     /// means of 0/0).
-    #[arg(long, default_value_t = 200_000, value_parser = ray_count, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 200_000, value_parser = ray_count)]
     pub rays: usize,
     /// Builders to compare [default: all].
     #[arg(long = "builder", value_enum)]
@@ -37,7 +37,7 @@ pub struct BuildCompareArgs {
     #[arg(long)]
     pub no_optimize: bool,
     /// Seed of the lines and rays.
-    #[arg(long, default_value_t = 1, value_parser = seed, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1, value_parser = seed)]
     pub seed: u64,
     /// Print a JSON list of rows instead of the table.
     #[arg(long)]

@@ -2,8 +2,9 @@
 //! use and, for any other, says which it takes. Clap names the flag and the value given:
 //! `invalid value 'nan' for '--lambda <LAMBDA>': expected a finite number from 0.001 to 1024`.
 //!
-//! Flags that use one of these parsers also set `allow_negative_numbers`, so that `--lambda -1`
-//! is refused for its value, not read as an unknown flag `-1`.
+//! Every flag takes values that look like negative numbers (`main.rs`,
+//! `negative_numbers_as_values`), so that `--lambda -1` is refused for its value, not read as
+//! an unknown flag `-1`.
 
 /// The most rays a `--rays` flag may ask for: 2^27, far past any benchmark (`hbv bench`'s three
 /// sets of them take 13 GB), and small enough that no count can overflow an allocation.

@@ -112,7 +112,10 @@ fn shortened(name: &OsStr, room: usize) -> &OsStr {
 fn shortened(name: &OsStr, room: usize) -> &OsStr {
     match name.to_str() {
         Some(text) if text.len() > room => {
-            let end = (0..=room).rev().find(|&k| text.is_char_boundary(k)).unwrap_or(0);
+            let end = (0..=room)
+                .rev()
+                .find(|&k| text.is_char_boundary(k))
+                .unwrap_or(0);
             OsStr::new(&text[..end])
         }
         _ => name,

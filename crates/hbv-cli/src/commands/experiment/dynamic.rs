@@ -29,10 +29,10 @@ pub struct DynamicArgs {
     /// Mesh file (.obj, .ply, .gltf, .glb, .hbv); the built-in scene when omitted.
     pub mesh: Option<PathBuf>,
     /// Largest displacement of a moved triangle, as a fraction of the scene's diagonal (0 to 10).
-    #[arg(long, default_value_t = 0.05, value_parser = displacement, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.05, value_parser = displacement)]
     pub displacement: f32,
     /// Seed of the choice of triangles and of their displacements.
-    #[arg(long, default_value_t = 0x5eed, value_parser = seed, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0x5eed, value_parser = seed)]
     pub seed: u64,
     /// Print one JSON object instead of a table.
     #[arg(long)]

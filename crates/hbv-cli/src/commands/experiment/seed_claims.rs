@@ -42,26 +42,16 @@ pub struct SeedClaimsArgs {
     /// ../shared/scenes/*.ply when that folder exists.
     pub meshes: Vec<PathBuf>,
     /// Camera rays (a ⌈√N⌉-wide image); the secondary sets have one ray per camera hit.
-    #[arg(long, default_value_t = 1 << 18, value_parser = ray_count, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1 << 18, value_parser = ray_count)]
     pub rays: usize,
     /// Timed rounds after one warm-up round; the median is reported.
-    #[arg(
-        long,
-        default_value_t = 3,
-        value_parser = clap::value_parser!(u32).range(1..),
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..))]
     pub repeat: u32,
     /// Seed of the diffuse bounces and the random shadow rays.
-    #[arg(long = "ray-seed", default_value_t = 1, value_parser = seed, allow_negative_numbers = true)]
+    #[arg(long = "ray-seed", default_value_t = 1, value_parser = seed)]
     pub ray_seed: u64,
     /// Grid density λ (λ · N^(1/3) cells along the longest axis; 0.001 to 1024).
-    #[arg(
-        long,
-        default_value_t = GridConfig::default().lambda,
-        value_parser = grid_density,
-        allow_negative_numbers = true
-    )]
+    #[arg(long, default_value_t = GridConfig::default().lambda, value_parser = grid_density)]
     pub lambda: f64,
     /// Print one JSON array (one object per mesh) instead of tables.
     #[arg(long)]
