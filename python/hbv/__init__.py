@@ -8,7 +8,8 @@ or points at a time (all cores, GIL released):
 - ``intersect_all`` / ``count``: every hit along each ray, in one traversal;
 - ``contains``: whether points lie inside a closed mesh (``Mesh.is_closed``; a RuntimeWarning
   otherwise);
-- ``closest_point``: the nearest surface point, its distance, triangle and barycentrics.
+- ``closest_point``: the nearest surface point, its distance, triangle and barycentrics;
+- ``signed_distance``: that distance, negative inside the mesh.
 
 Answers are exact (watertight ray/triangle test, checked against brute force) and deterministic
 (equal ``t``: the smaller triangle id wins).

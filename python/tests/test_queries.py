@@ -232,6 +232,32 @@ def test_closest_point_on_a_sphere():
     assert np.abs(got["distance"] - np.abs(r - 2.0)).max() < 0.01
 
 
+def test_signed_distance_is_the_distance_negative_inside():
+    v, f = icosphere(4, radius=2.0, center=(1.0, 0.0, -1.0))
+    bvh = hbv.BVH(hbv.Mesh(v, f))
+    rng = np.random.default_rng(8)
+    points = rng.normal(size=(3000, 3)) * 2 + [1.0, 0.0, -1.0]
+    signed = bvh.signed_distance(points, threads=2)
+    assert signed.dtype == np.float64 and signed.shape == (3000,)
+    # Its magnitude is closest_point's distance, its sign contains' answer, exactly.
+    np.testing.assert_array_equal(np.abs(signed), bvh.closest_point(points)["distance"])
+    np.testing.assert_array_equal(signed < 0, bvh.contains(points) & (signed != 0))
+    # And close to the sphere's own signed distance (the mesh is an inscribed polyhedron).
+    r = np.linalg.norm(points - [1.0, 0.0, -1.0], axis=1)
+    assert np.abs(signed - (r - 2.0)).max() < 0.02
+    # No answer: a non-finite point; an empty list of points.
+    assert bvh.signed_distance(np.array([[np.nan, 0.0, 0.0]]))[0] == np.inf
+    assert bvh.signed_distance(np.zeros((0, 3))).shape == (0,)
+
+
+def test_signed_distance_warns_on_open_meshes(sphere):
+    mesh, v, f = sphere
+    bvh = hbv.BVH(hbv.Mesh(v, f[1:]))
+    with pytest.warns(RuntimeWarning):
+        signed = bvh.signed_distance(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 3.0]]))
+    assert signed[0] < 0 < signed[1]
+
+
 def test_closest_point_is_the_same_on_any_tree_and_thread_count():
     """Exact answers do not depend on the tree, the thread count or the batch's order: clustered
     points (neighbours in the batch seed each other) and points a hair off the surface, on an

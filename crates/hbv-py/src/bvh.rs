@@ -312,6 +312,36 @@ impl PyBvh {
         Ok(out)
     }
 
+    /// The signed distance of each point to the surface (float64): `closest_point`'s distance,
+    /// negative inside the mesh (`contains`), as Open3D's `compute_signed_distance` and most SDF
+    /// code (trimesh's `signed_distance` has the opposite sign). Exact where `contains` is: on a
+    /// closed mesh (`Mesh.is_closed`); otherwise `contains` warns, and the sign is the majority
+    /// of three rays' parities. A point on the surface gets 0 (of either sign); a point without
+    /// a nearest point (not finite, or an empty mesh) +inf, as in `closest_point`.
+    #[pyo3(signature = (points, threads=None))]
+    fn signed_distance<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        threads: Option<ThreadCount>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let distance = self
+            .closest_point(py, points, threads)?
+            .get_item("distance")?
+            .expect("closest_point answers a distance")
+            .cast_into::<PyArray1<f64>>()?;
+        let inside = self.contains(py, points, threads)?;
+        {
+            let (inside, mut signed) = (inside.readonly(), distance.readwrite());
+            for (d, &inside) in signed.as_slice_mut()?.iter_mut().zip(inside.as_slice()?) {
+                if inside {
+                    *d = -*d;
+                }
+            }
+        }
+        Ok(distance)
+    }
+
     /// Saves the tree with its mesh to `path` in the `.hbv` format (docs/BVH_FILE.md), for
     /// `hbv.load_bvh(path)` or the `hbv` command line. Written atomically (a temporary file,
     /// then renamed into place); FileExistsError if `path` exists, unless `overwrite=True`
