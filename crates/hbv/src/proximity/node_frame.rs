@@ -62,20 +62,24 @@ impl NodeFrame {
     /// The box of `vertices` in this frame, `(lo, hi)` per axis, rounded outward to f32: `r_j·v`
     /// in f64 (three exact products, two roundings of at most `2⁻⁵³` of `Σ |r_ji v_i|` each; a
     /// margin of `2⁻⁵⁰` of it is added).
+    ///
+    /// The extremes are taken in f64 and rounded once: directed rounding is monotone, so that is
+    /// the box of the vertices' rounded bounds, bit for bit, at a sixth of the roundings per
+    /// vertex.
     pub fn box_of(&self, vertices: impl IntoIterator<Item = Vec3>) -> ([f32; 3], [f32; 3]) {
-        let mut lo = [f32::INFINITY; 3];
-        let mut hi = [f32::NEG_INFINITY; 3];
+        let mut lo = [f64::INFINITY; 3];
+        let mut hi = [f64::NEG_INFINITY; 3];
         for v in vertices {
             for (j, row) in self.rows.iter().enumerate() {
                 let terms = [0, 1, 2].map(|i| row[i] as f64 * v[i] as f64);
                 let value = terms[0] + terms[1] + terms[2];
                 let margin =
                     (terms[0].abs() + terms[1].abs() + terms[2].abs()) * f64::powi(2.0, -50);
-                lo[j] = lo[j].min(f32_below(value - margin));
-                hi[j] = hi[j].max(f32_above(value + margin));
+                lo[j] = lo[j].min(value - margin);
+                hi[j] = hi[j].max(value + margin);
             }
         }
-        (lo, hi)
+        (lo.map(f32_below), hi.map(f32_above))
     }
 
     /// The point's coordinates in this frame, bracketed in f32, from its world bracket: with

@@ -123,7 +123,12 @@ impl SearchTree {
         };
         let below = triangles_below(tree);
         let leaf_max = config.leaf_triangles.max(1) as u32;
-        let mut planned = PacketPlan::default();
+        // Sized for every triangle at once, not grown by doubling (copies, fresh pages).
+        let n = mesh.triangle_count();
+        let mut planned = PacketPlan {
+            triangles: Vec::with_capacity(n),
+            groups: Vec::with_capacity(n.div_ceil(LANES) * 2),
+        };
         // Nodes to try a rotated frame for: (node, its slots, their aligned boxes, the slots
         // given a child), decided in parallel once the shape is known.
         let mut frame_trials: Vec<(usize, Vec<Slot>, Vec<SlotBox>, u32)> = Vec::new();

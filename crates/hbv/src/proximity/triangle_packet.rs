@@ -65,7 +65,13 @@ impl TrianglePacket {
             reach_slack: [0.0; LANES],
         };
         for lane in 0..LANES {
-            let (prim, v) = triangles[if lane < triangles.len() { lane } else { 0 }];
+            if lane >= triangles.len() {
+                // Past the leaf's end: a copy of lane 0 (22 % of igea's lanes, whose
+                // enclosures were made again).
+                packet.copy_lane(0, lane);
+                continue;
+            }
+            let (prim, v) = triangles[lane];
             packet.prim[lane] = prim;
             for (k, vertex) in v.iter().enumerate() {
                 for axis in 0..3 {
@@ -92,6 +98,24 @@ impl TrianglePacket {
             packet.reach_slack[lane] = e.reach_slack;
         }
         packet
+    }
+
+    /// Makes lane `to` a copy of lane `from`.
+    fn copy_lane(&mut self, from: usize, to: usize) {
+        self.prim[to] = self.prim[from];
+        self.slivers |= (self.slivers >> from & 1) << to;
+        for axis in 0..3 {
+            for k in 0..3 {
+                self.vertex[k][axis][to] = self.vertex[k][axis][from];
+                self.edge_normal[k][axis][to] = self.edge_normal[k][axis][from];
+            }
+            self.centre[axis][to] = self.centre[axis][from];
+            self.normal[axis][to] = self.normal[axis][from];
+            self.edge_offset[axis][to] = self.edge_offset[axis][from];
+        }
+        self.thickness[to] = self.thickness[from];
+        self.radius[to] = self.radius[from];
+        self.reach_slack[to] = self.reach_slack[from];
     }
 
     /// The triangle in `lane`, in f64 (exact: the vertices are f32).
