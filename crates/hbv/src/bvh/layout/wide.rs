@@ -14,9 +14,9 @@ use super::binarize::binarize;
 use super::stack::TraversalStack;
 use super::wide_kernels::{BoxRay, LaneBoxes, Lanes};
 use crate::bvh::tree::{BuildTree, NodeContent, NodeId};
-use crate::geometry::{Aabb, PreparedRay, Ray};
+use crate::geometry::{Aabb, EdgeRule, PreparedRay, Ray, TriangleHit};
 use crate::mesh::TriangleMesh;
-use crate::query::{record_closer_hit, record_hit, Hit, TraversalKernel};
+use crate::query::{record_hit, Hit, TraversalKernel};
 use crate::stats::{Counter, NoCount};
 
 /// Bit 31 of a child reference: the child is a leaf.
@@ -631,8 +631,26 @@ fn closest_hit_in_packet<C: Counter>(
         record_hit(test.hit(lane), packet.ids[lane], ray, best);
     }
     for lane in Lanes(test.undecided) {
-        record_closer_hit(&packet.triangle(lane), packet.ids[lane], ray, best);
+        if let Some(h) = undecided_lane(packet, lane, ray, EdgeRule::Closed) {
+            record_hit(h, packet.ids[lane], ray, best);
+        }
     }
+}
+
+/// The scalar test ([`crate::geometry::Triangle::intersect_by`]) of a lane the packet test
+/// left undecided: a ray within rounding distance of an edge or a vertex, or a hit next to its
+/// origin. Rare, and kept out of line: inlined, the scalar test doubled the size of the
+/// closest-hit leaf visit (3.5 to 7.2 KB) and made closest hits from Python 2–5 % slower on one
+/// thread (BENCHMARKS.md, session 17).
+#[cold]
+#[inline(never)]
+pub(super) fn undecided_lane(
+    packet: &TrianglePacket,
+    lane: usize,
+    ray: &PreparedRay,
+    rule: EdgeRule,
+) -> Option<TriangleHit> {
+    packet.triangle(lane).intersect_by(ray, rule)
 }
 
 /// [`WideLayout`]'s any-hit test of one triangle packet: the face id of a triangle the ray hits.
@@ -648,7 +666,7 @@ fn any_hit_in_packet<C: Counter>(
         return Some(packet.ids[test.hit.trailing_zeros() as usize]);
     }
     for lane in Lanes(test.undecided) {
-        if packet.triangle(lane).intersect(ray).is_some() {
+        if undecided_lane(packet, lane, ray, EdgeRule::Closed).is_some() {
             return Some(packet.ids[lane]);
         }
     }

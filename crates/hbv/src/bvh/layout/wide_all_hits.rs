@@ -1,7 +1,7 @@
 //! Every hit along a ray through the wide layout: one traversal that visits every leaf the
 //! ray's full interval reaches and keeps every triangle hit.
 
-use super::wide::{TrianglePacket, WideLayout};
+use super::wide::{undecided_lane, TrianglePacket, WideLayout};
 use super::wide_kernels::Lanes;
 use crate::all_hits::{sort_hits, AllHits};
 use crate::geometry::{EdgeRule, PreparedRay, Ray};
@@ -55,7 +55,7 @@ fn keep_hits(packets: &[TrianglePacket], ray: &PreparedRay, hits: &mut Vec<Hit>)
             let hit = if test.hit >> lane & 1 == 1 {
                 Some(test.hit(lane))
             } else {
-                packet.triangle(lane).intersect_by(ray, EdgeRule::HalfOpen)
+                undecided_lane(packet, lane, ray, EdgeRule::HalfOpen)
             };
             if let Some(h) = hit {
                 hits.push(Hit {
