@@ -31,7 +31,11 @@ Points: N uniform in the box grown by 10 % on each side.
 
 Timing: every contender is called once untimed (which also builds Open3D's and Embree's lazy
 structures), then `--repeat` rounds in which each contender runs once, interleaved, so that a
-disturbance on a loaded machine hits all of them alike; the median is reported. Structures are
+disturbance on a loaded machine hits all of them alike; the median is reported, and each ratio
+in the tables is the median over the rounds of that round's ratio (a drift of the machine's
+speed between rounds then cancels: on the benchmark's VM, ratios of two medians read spot's
+random rays at 0.75× and 0.87× embreex in two runs where per-round ratios read 0.99× within the
+hour). Structures are
 built outside the timed span. Answers are checked: the fraction of rays whose hit flag and
 triangle agree with Embree's (ties on shared edges may differ), the largest distance
 difference with Open3D's closest points, the fraction of points given the same triangle (among
@@ -83,6 +87,16 @@ from machine import describe, machine  # noqa: E402
 REPO = pathlib.Path(__file__).resolve().parent.parent
 # The last `time_interleaved` call's page faults per timed call, by contender.
 FAULTS = {}
+# Each contender's seconds round by round, of the last time_interleaved call.
+ROUNDS = {}
+
+
+def round_ratio(fast, slow):
+    """How many times faster `fast` ran than `slow`: the median over the rounds of their time
+    ratio in each round. Both ran within the same round, so a drift of the machine's speed
+    between rounds (±25 % on the benchmark's VM within minutes) cancels, where a ratio of two
+    medians does not."""
+    return statistics.median(s / f for f, s in zip(ROUNDS[fast], ROUNDS[slow]))
 
 
 def parse_args():
@@ -175,6 +189,8 @@ def time_interleaved(contenders, repeat):
     # the kernel and the call touched again, at about 1 µs a page on the benchmark's VM.
     FAULTS.clear()
     FAULTS.update({name: statistics.median(f) for name, f in faults.items()})
+    ROUNDS.clear()
+    ROUNDS.update(times)
     return {name: statistics.median(t) for name, t in times.items()}, results
 
 
@@ -231,6 +247,11 @@ def compare_mesh(path, args):
             "hit_rate": float(ours["hit"].mean()),
             "same_prim_as_embree": float((ours["prim"] == emb_prim).mean()),
             "same_prim_as_open3d": float((ours["prim"] == o3d_prim).mean()),
+            "ratios": {
+                "hbv_1/embreex_1": round_ratio("hbv_1", "embreex_1"),
+                "hbv_all/hbv_1": round_ratio("hbv_all", "hbv_1"),
+                "hbv_all/open3d_all": round_ratio("hbv_all", "open3d_all"),
+            },
         })
         print(f"{path.name} {set_name}: " + ", ".join(f"{k} {x:.2f}" for k, x in mrays.items())
               + "; page faults per call: " + ", ".join(f"{k} {x:g}" for k, x in FAULTS.items()),
@@ -255,6 +276,10 @@ def compare_mesh(path, args):
     closest = {
         "mesh": path.name, "triangles": len(f), "points": len(points),
         "mqueries_per_s": {name: len(points) / s / 1e6 for name, s in seconds.items()},
+        "ratios": {
+            "hbv_1/open3d_1": round_ratio("hbv_1", "open3d_1"),
+            "hbv_all/open3d_all": round_ratio("hbv_all", "open3d_all"),
+        },
         "page_faults_per_call": dict(FAULTS),
         "max_distance_difference_over_diagonal": float(np.abs(ours - theirs).max() / diag),
         # Points whose nearest point lies inside a face (not on an edge or vertex, where the
@@ -401,12 +426,12 @@ def print_ray_table(rows, cores):
           "trimesh-triangle 1 | same prim as Embree |")
     print("| --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for r in rows:
-        m = r["mrays_per_s"]
+        m, ratio = r["mrays_per_s"], r["ratios"]
         tri = f"{m['trimesh_triangle_1']:.4f}" if "trimesh_triangle_1" in m else "—"
         print(f"| {r['mesh']} | {r['triangles']:,} | {r['set']} | {m['hbv_1']:.2f} | {m['embreex_1']:.2f} | "
-              f"**{m['hbv_1'] / m['embreex_1']:.2f}×** | {m['open3d_1']:.2f} | {m['hbv_all']:.2f} | "
-              f"**{m['hbv_all'] / m['hbv_1']:.2f}×** | {m['open3d_all']:.2f} | "
-              f"**{m['hbv_all'] / m['open3d_all']:.2f}×** | {m['trimesh_embree_1']:.2f} | {tri} | "
+              f"**{ratio['hbv_1/embreex_1']:.2f}×** | {m['open3d_1']:.2f} | {m['hbv_all']:.2f} | "
+              f"**{ratio['hbv_all/hbv_1']:.2f}×** | {m['open3d_all']:.2f} | "
+              f"**{ratio['hbv_all/open3d_all']:.2f}×** | {m['trimesh_embree_1']:.2f} | {tri} | "
               f"{100 * r['same_prim_as_embree']:.2f} % |")
 
 
@@ -416,10 +441,10 @@ def print_closest_table(closest):
           "**hbv / Open3D (all)** | max \\|Δ distance\\| / diagonal | same triangle as Open3D (face interiors) |")
     print("| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |")
     for c in closest:
-        q = c["mqueries_per_s"]
+        q, ratio = c["mqueries_per_s"], c["ratios"]
         print(f"| {c['mesh']} | {c['points']:,} | {q['hbv_1']:.3f} | {q['open3d_1']:.3f} | "
-              f"**{q['hbv_1'] / q['open3d_1']:.1f}×** | {q['hbv_all']:.3f} | {q['open3d_all']:.3f} | "
-              f"**{q['hbv_all'] / q['open3d_all']:.1f}×** | {c['max_distance_difference_over_diagonal']:.1e} | "
+              f"**{ratio['hbv_1/open3d_1']:.1f}×** | {q['hbv_all']:.3f} | {q['open3d_all']:.3f} | "
+              f"**{ratio['hbv_all/open3d_all']:.1f}×** | {c['max_distance_difference_over_diagonal']:.1e} | "
               f"{100 * c['same_prim_as_open3d_inside_faces']:.2f} % |")
         if not c["same_answers_1_and_all"]:
             print(f"WARNING: {c['mesh']}: hbv's answers with one thread and all threads differ", file=sys.stderr)
