@@ -53,6 +53,10 @@ def load(path: Union[str, PathLike[str]]) -> Mesh:
 class BVH:
     """A bounding volume hierarchy over a mesh, answering ray and point queries.
 
+    optimize: reinsertion optimization (Bittner et al. 2013) after building; None (default):
+    for meshes of at most 1,024 triangles, where it costs about a millisecond and makes modelled
+    scenes (walls around furniture) up to 1.4x faster to trace. ``stats()["optimize"]`` says
+    which was chosen.
     leaf_size: most triangles per leaf, 1 to 255 (default: the builder's).
     """
 
@@ -61,7 +65,7 @@ class BVH:
         mesh: Mesh,
         builder: str = "binned-sah",
         layout: Optional[str] = None,
-        optimize: bool = False,
+        optimize: Optional[bool] = None,
         leaf_size: Optional[int] = None,
     ) -> None: ...
     @property

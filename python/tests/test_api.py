@@ -175,6 +175,43 @@ def test_every_builder_and_layout_gives_the_same_answers(triangle_soup):
     np.testing.assert_array_equal(bvh.intersect(o, d)["prim"], want["prim"])
 
 
+def room_of_boxes(boxes=6, seed=3):
+    """A modelled scene: a room's twelve wall triangles (facing in) around random boxes."""
+    rng = np.random.default_rng(seed)
+    corners = np.array([[x, y, z] for z in (0.0, 1.0) for y in (0.0, 1.0) for x in (0.0, 1.0)])
+    quads = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+    cube = np.array([[a, b, c] for a, b, c, d in quads] + [[a, c, d] for a, b, c, d in quads])
+    vertices, faces = [corners * 10.0 - 5.0], [cube[:, ::-1]]
+    for k in range(boxes):
+        size = rng.uniform(0.3, 2.0, 3)
+        vertices.append(corners * size + rng.uniform(-4.0, 4.0 - size))
+        faces.append(cube + 8 * (k + 1))
+    return np.concatenate(vertices), np.concatenate(faces)
+
+
+def test_small_meshes_are_optimized_by_default_with_the_same_answers(sphere):
+    v, f = room_of_boxes()
+    mesh = hbv.Mesh(v, f)
+    default, plain = hbv.BVH(mesh), hbv.BVH(mesh, optimize=False)
+    assert default.stats()["optimize"] is True and "optimize=True" in repr(default)
+    assert plain.stats()["optimize"] is False
+    # Reinsertion lifts the walls out of the subtrees whose boxes they stretch.
+    assert default.expected_tests() < plain.expected_tests()
+    o, d = random_rays(2000, spread=6.0)
+    want = plain.intersect(o, d)
+    got = default.intersect(o, d)
+    for k in want:
+        np.testing.assert_array_equal(got[k], want[k], err_msg=k)
+    np.testing.assert_array_equal(default.count(o, d), plain.count(o, d))
+    # Pickled with the choice made, so unpickling builds the same tree.
+    again = pickle.loads(pickle.dumps(default))
+    assert again.stats()["optimize"] is True and again.expected_tests() == default.expected_tests()
+    # Above 1,024 triangles the default is not to optimize (the icosphere has 1,280).
+    big, _, big_f = sphere
+    assert len(big_f) > 1024 and hbv.BVH(big).stats()["optimize"] is False
+    assert hbv.BVH(big, optimize=True).stats()["optimize"] is True
+
+
 def test_costs_and_stats(sphere):
     mesh, _, f = sphere
     bvh = hbv.BVH(mesh, builder="insertion")

@@ -7,6 +7,7 @@ use std::time::Instant;
 
 use hbv::bvh::file::BvhFile;
 use hbv::bvh::layout::Wide8Layout;
+use hbv::bvh::optimize::ReinsertionOptimizer;
 use hbv::bvh::{expected_tests, sah_cost, BuildTree, SahWeights};
 use hbv::proximity::{ClosestPointColumns, ClosestPointTree, FlatPoints, QueryPoints};
 use hbv::{Accelerator, TriangleMesh};
@@ -24,11 +25,14 @@ use crate::thread_pool::{one_thread, run_here_or_on_threads, ThreadCount};
 
 /// A bounding volume hierarchy over a mesh, answering ray and point queries.
 ///
-/// BVH(mesh, builder="binned-sah", layout=None, optimize=False, leaf_size=None)
+/// BVH(mesh, builder="binned-sah", layout=None, optimize=None, leaf_size=None)
 ///
 /// builder: "binned-sah" (default), "sweep-sah", "insertion", "median" or "lbvh".
 /// layout: "wide8" (default, the fastest), "wide4", "ordered", "recursive" or "skip".
-/// optimize: reinsertion optimization (Bittner et al. 2013) after building.
+/// optimize: reinsertion optimization (Bittner et al. 2013) after building: True, False, or
+///     None (default) for meshes of at most 1,024 triangles, where it costs about a millisecond
+///     and makes modelled scenes (walls around furniture) up to 1.4x faster to trace. Larger
+///     modelled scenes gain too (True); scanned meshes gain nothing from it.
 ///
 /// save(path) writes the tree with its mesh to a `.hbv` file; hbv.load_bvh(path) reads it back
 /// without building again.
@@ -121,13 +125,13 @@ impl PyBvh {
 #[pymethods]
 impl PyBvh {
     #[new]
-    #[pyo3(signature = (mesh, builder="binned-sah", layout=None, optimize=false, leaf_size=None))]
+    #[pyo3(signature = (mesh, builder="binned-sah", layout=None, optimize=None, leaf_size=None))]
     fn new(
         py: Python<'_>,
         mesh: &Bound<'_, PyAny>,
         builder: &str,
         layout: Option<&str>,
-        optimize: bool,
+        optimize: Option<bool>,
         leaf_size: Option<usize>,
     ) -> PyResult<Self> {
         let mesh =
@@ -137,8 +141,10 @@ impl PyBvh {
                 mesh.get_type().name().map(|n| n.to_string()).unwrap_or_default()
             ))
             })?;
-        let options = BuildOptions::new(builder, layout, optimize, leaf_size)?;
         let triangles = mesh.get().mesh.clone();
+        let optimize = optimize
+            .unwrap_or_else(|| ReinsertionOptimizer::pays_by_default(triangles.triangle_count()));
+        let options = BuildOptions::new(builder, layout, optimize, leaf_size)?;
         let (tree, accel, wide, build_seconds) = py.detach(|| {
             let start = Instant::now();
             let tree = options.build(&triangles);

@@ -30,4 +30,5 @@ mod reinsertion;
 pub use collapse::{collapse_leaves, CollapseConfig};
 pub use reinsertion::{
     ReinsertionConfig, ReinsertionOptimizer, ReinsertionReport, StopReason, MIN_BATCH,
+    OPTIMIZE_BY_DEFAULT_MAX_TRIANGLES,
 };
