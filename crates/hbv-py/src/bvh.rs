@@ -12,7 +12,7 @@ use hbv::bvh::{expected_tests, sah_cost, BuildTree, SahWeights};
 use hbv::proximity::{ClosestPointColumns, ClosestPointTree, FlatPoints, QueryPoints};
 use hbv::{Accelerator, TriangleMesh};
 use numpy::{IntoPyArray, PyArray1, PyArrayMethods};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
@@ -84,20 +84,30 @@ impl PyBvh {
         tree: BuildTree,
         settings: String,
     ) -> Self {
-        let (accel, wide) = py.detach(|| options.lay_out(&tree, &triangles));
-        let wide_cell = OnceLock::new();
-        if let Some(w) = wide {
-            let _ = wide_cell.set(w);
-        }
+        let laid_out = py.detach(|| options.lay_out(&tree, &triangles));
+        Self::with_layout(mesh, triangles, options, tree, laid_out, 0.0, settings)
+    }
+
+    /// A BVH over `tree`, laid out as `laid_out` ([`BuildOptions::lay_out`]: the accelerator,
+    /// and the wide-8 layout when it is one, which the all-hits queries then share).
+    fn with_layout(
+        mesh: Py<PyMesh>,
+        triangles: Arc<TriangleMesh>,
+        options: BuildOptions,
+        tree: BuildTree,
+        (accel, wide): (Arc<dyn Accelerator>, Option<Arc<Wide8Layout>>),
+        build_seconds: f64,
+        settings: String,
+    ) -> Self {
         Self {
             mesh,
             triangles,
             options,
             tree,
             accel,
-            wide: wide_cell,
+            wide: wide.map_or_else(OnceLock::new, OnceLock::from),
             closest: OnceLock::new(),
-            build_seconds: 0.0,
+            build_seconds,
             settings,
         }
     }
@@ -134,39 +144,27 @@ impl PyBvh {
         optimize: Option<bool>,
         leaf_size: Option<usize>,
     ) -> PyResult<Self> {
-        let mesh =
-            mesh.cast::<PyMesh>().map_err(|_| {
-                PyTypeError::new_err(format!(
-                "mesh: expected an hbv.Mesh (hbv.Mesh(vertices, faces) or hbv.load(path)), got {}",
-                mesh.get_type().name().map(|n| n.to_string()).unwrap_or_default()
-            ))
-            })?;
+        let mesh = PyMesh::from_argument(mesh)?;
         let triangles = mesh.get().mesh.clone();
         let optimize = optimize
             .unwrap_or_else(|| ReinsertionOptimizer::pays_by_default(triangles.triangle_count()));
         let options = BuildOptions::new(builder, layout, optimize, leaf_size)?;
-        let (tree, accel, wide, build_seconds) = py.detach(|| {
+        let (tree, laid_out, build_seconds) = py.detach(|| {
             let start = Instant::now();
             let tree = options.build(&triangles);
-            let (accel, wide) = options.lay_out(&tree, &triangles);
-            (tree, accel, wide, start.elapsed().as_secs_f64())
+            let laid_out = options.lay_out(&tree, &triangles);
+            (tree, laid_out, start.elapsed().as_secs_f64())
         });
         let settings = describe(&options);
-        let wide_cell = OnceLock::new();
-        if let Some(w) = wide {
-            let _ = wide_cell.set(w);
-        }
-        Ok(Self {
-            mesh: mesh.clone().unbind(),
+        Ok(Self::with_layout(
+            mesh.clone().unbind(),
             triangles,
             options,
             tree,
-            accel,
-            wide: wide_cell,
-            closest: OnceLock::new(),
+            laid_out,
             build_seconds,
             settings,
-        })
+        ))
     }
 
     /// The mesh the tree was built over.

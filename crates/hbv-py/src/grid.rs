@@ -6,7 +6,7 @@ use std::time::Instant;
 use hbv::grid::{GridConfig, UniformGrid};
 use hbv::TriangleMesh;
 use numpy::PyArray1;
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
@@ -38,13 +38,7 @@ impl PyGrid {
     #[new]
     #[pyo3(signature = (mesh, lam=None))]
     fn new(py: Python<'_>, mesh: &Bound<'_, PyAny>, lam: Option<f64>) -> PyResult<Self> {
-        let mesh =
-            mesh.cast::<PyMesh>().map_err(|_| {
-                PyTypeError::new_err(format!(
-                "mesh: expected an hbv.Mesh (hbv.Mesh(vertices, faces) or hbv.load(path)), got {}",
-                mesh.get_type().name().map(|n| n.to_string()).unwrap_or_default()
-            ))
-            })?;
+        let mesh = PyMesh::from_argument(mesh)?;
         let mut config = GridConfig::default();
         if let Some(lam) = lam {
             if !(lam.is_finite() && lam > 0.0) {

@@ -6,7 +6,7 @@ use std::sync::{Arc, OnceLock};
 use hbv::glam::Vec3;
 use hbv::{MeshError, TriangleMesh};
 use numpy::{IntoPyArray, PyArray2, PyArrayMethods};
-use pyo3::exceptions::{PyOSError, PyRuntimeWarning, PyValueError};
+use pyo3::exceptions::{PyOSError, PyRuntimeWarning, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
@@ -31,6 +31,20 @@ impl PyMesh {
             mesh,
             open_edges: OnceLock::new(),
         }
+    }
+
+    /// The `mesh` argument of a structure's constructor (`hbv.BVH`, `hbv.Grid`) as an
+    /// `hbv.Mesh`; a TypeError naming the type it got otherwise.
+    pub fn from_argument<'a, 'py>(mesh: &'a Bound<'py, PyAny>) -> PyResult<&'a Bound<'py, Self>> {
+        mesh.cast::<Self>().map_err(|_| {
+            PyTypeError::new_err(format!(
+                "mesh: expected an hbv.Mesh (hbv.Mesh(vertices, faces) or hbv.load(path)), got {}",
+                mesh.get_type()
+                    .name()
+                    .map(|n| n.to_string())
+                    .unwrap_or_default()
+            ))
+        })
     }
 
     /// The number of open edges, counted (off the GIL) on first use.
