@@ -26,6 +26,7 @@ use hbv::grid::{GridConfig, UniformGrid};
 
 use super::build_args::{load_mesh, thread_pool, AccelName, BuildArgs, BuilderName, LayoutName};
 use super::flag_values::ray_count;
+use super::median::median;
 
 #[derive(Args)]
 pub struct BenchArgs {
@@ -459,16 +460,6 @@ fn per_ray(total: u64, rays: u64) -> f64 {
         0.0
     } else {
         total as f64 / rays as f64
-    }
-}
-
-fn median(values: &[f64]) -> f64 {
-    let mut sorted = values.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    match sorted.len() {
-        0 => 0.0,
-        n if n % 2 == 1 => sorted[n / 2],
-        n => (sorted[n / 2 - 1] + sorted[n / 2]) / 2.0,
     }
 }
 

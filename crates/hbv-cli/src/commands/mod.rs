@@ -7,5 +7,6 @@ pub mod build_compare;
 pub mod experiment;
 pub mod flag_values;
 pub mod info;
+pub mod median;
 pub mod render;
 pub mod trace;

@@ -14,6 +14,7 @@ use hbv::grid::{GridConfig, UniformGrid};
 use hbv::Accelerator;
 
 use super::build_args::{load_scene, thread_pool, AccelName, BuildArgs, BuilderName, LayoutName};
+use super::median::median;
 
 #[derive(Args)]
 pub struct TraceArgs {
@@ -138,7 +139,7 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         // The same answers each time: only the time is kept.
         run_seconds.push(trace().1);
     }
-    let trace_seconds = median(&mut run_seconds.clone());
+    let trace_seconds = median(&run_seconds);
     let hit_count = match &answers {
         Answers::Occluded(occluded) => {
             hit_file::write_occlusion(&args.out, occluded, replace_policy(args.force))
@@ -195,17 +196,6 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         println!("wrote     {}", args.out.display());
     }
     Ok(())
-}
-
-/// The median of `seconds` (not empty): the middle one, or the mean of the middle two.
-fn median(seconds: &mut [f64]) -> f64 {
-    seconds.sort_by(f64::total_cmp);
-    let n = seconds.len();
-    if n % 2 == 1 {
-        seconds[n / 2]
-    } else {
-        (seconds[n / 2 - 1] + seconds[n / 2]) / 2.0
-    }
 }
 
 /// `query` on each ray, one call per ray, in parallel on the current pool.

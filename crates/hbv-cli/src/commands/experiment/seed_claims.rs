@@ -35,6 +35,7 @@ use serde::Serialize;
 
 use crate::commands::build_args::load_mesh;
 use crate::commands::flag_values::{grid_density, ray_count, seed};
+use crate::commands::median::median;
 
 #[derive(Args)]
 pub struct SeedClaimsArgs {
@@ -353,16 +354,6 @@ fn per_ray(total: u64, rays: u64) -> f64 {
         0.0
     } else {
         total as f64 / rays as f64
-    }
-}
-
-fn median(values: &[f64]) -> f64 {
-    let mut sorted = values.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    match sorted.len() {
-        0 => 0.0,
-        n if n % 2 == 1 => sorted[n / 2],
-        n => (sorted[n / 2 - 1] + sorted[n / 2]) / 2.0,
     }
 }
 
