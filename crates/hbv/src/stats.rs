@@ -47,10 +47,36 @@ impl TraversalStats {
 
     /// Mean tests per ray (0 when no ray was counted).
     pub fn tests_per_ray(&self) -> f64 {
+        self.per_ray(self.tests())
+    }
+
+    /// Mean nodes visited per ray (0 when no ray was counted).
+    pub fn nodes_per_ray(&self) -> f64 {
+        self.per_ray(self.nodes_visited)
+    }
+
+    /// Mean boxes tested per ray (0 when no ray was counted).
+    pub fn boxes_per_ray(&self) -> f64 {
+        self.per_ray(self.boxes_tested)
+    }
+
+    /// Mean triangles tested per ray (0 when no ray was counted).
+    pub fn triangles_per_ray(&self) -> f64 {
+        self.per_ray(self.triangles_tested)
+    }
+
+    /// Mean mailbox skips per ray (0 when no ray was counted).
+    pub fn mailbox_skips_per_ray(&self) -> f64 {
+        self.per_ray(self.mailbox_skips)
+    }
+
+    /// `total` over the counted rays: 0 when none was counted, so that an empty ray set reports
+    /// no work rather than NaN.
+    fn per_ray(&self, total: u64) -> f64 {
         if self.rays == 0 {
             0.0
         } else {
-            self.tests() as f64 / self.rays as f64
+            total as f64 / self.rays as f64
         }
     }
 }

@@ -273,9 +273,9 @@ fn measure_accelerator(
                 runs,
                 hit_fraction: hits as f64 / rays.len().max(1) as f64,
                 memory_bytes,
-                nodes_per_ray: per_ray(stats.nodes_visited, stats.rays),
-                boxes_per_ray: per_ray(stats.boxes_tested, stats.rays),
-                triangles_per_ray: per_ray(stats.triangles_tested, stats.rays),
+                nodes_per_ray: stats.nodes_per_ray(),
+                boxes_per_ray: stats.boxes_per_ray(),
+                triangles_per_ray: stats.triangles_per_ray(),
                 counted_rays: stats.rays,
             });
         }
@@ -453,14 +453,6 @@ fn count_tests(
         }
     }
     stats
-}
-
-fn per_ray(total: u64, rays: u64) -> f64 {
-    if rays == 0 {
-        0.0
-    } else {
-        total as f64 / rays as f64
-    }
 }
 
 fn print_tables(report: &Report) {

@@ -146,8 +146,7 @@ fn measure(
     let per_line = tests_per_line(&layout, lines);
     let per_ray = |rays: &[Ray]| {
         let s = closest_hit_work(&layout, rays);
-        let n = s.rays.max(1) as f64;
-        (s.boxes_tested as f64 / n, s.triangles_tested as f64 / n)
+        (s.boxes_per_ray(), s.triangles_per_ray())
     };
     let (camera_boxes, camera_triangles) = per_ray(camera);
     let (inside_boxes, inside_triangles) = per_ray(inside);

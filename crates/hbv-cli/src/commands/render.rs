@@ -326,7 +326,7 @@ impl Report<'_> {
                 json!({
                     "rays": st.rays[k],
                     "tests_per_ray": counted.then(|| st.work[k].tests_per_ray()),
-                    "nodes_per_ray": counted.then(|| ratio(st.work[k].nodes_visited, st.work[k].rays)),
+                    "nodes_per_ray": counted.then(|| st.work[k].nodes_per_ray()),
                     "query_seconds": (timed > 0).then(|| st.query_nanos[k] as f64 * 1e-9),
                     "time_share": (timed > 0).then(|| st.query_nanos[k] as f64 / timed as f64),
                     "cache": cache_json(st.cache[k]),
@@ -464,7 +464,7 @@ impl Report<'_> {
                 "mailboxes  {}: {} repeated tests saved ({:.1} per ray, {:.1}% of the tests)",
                 RayKind::NAMES[k],
                 w.mailbox_skips,
-                ratio(w.mailbox_skips, w.rays),
+                w.mailbox_skips_per_ray(),
                 100.0 * ratio(w.mailbox_skips, w.mailbox_skips + w.triangles_tested)
             );
         }

@@ -287,8 +287,8 @@ fn count_row(
         cached_mrays_per_second: 0.0,
         tests_per_ray: plain.tests_per_ray(),
         cached_tests_per_ray: cached.tests_per_ray(),
-        nodes_per_ray: per_ray(plain.nodes_visited, plain.rays),
-        mailbox_skips_per_ray: per_ray(plain.mailbox_skips, plain.rays),
+        nodes_per_ray: plain.nodes_per_ray(),
+        mailbox_skips_per_ray: plain.mailbox_skips_per_ray(),
         cache_hit_rate: cache_stats.hit_rate(),
         cache_hit_rate_of_hits: cache_stats.hits as f64 / hits.max(1) as f64,
         mismatches,
@@ -347,14 +347,6 @@ const MIN_SECONDS: f64 = 0.05;
 
 fn mrays(count: usize, start: Instant) -> f64 {
     count as f64 / start.elapsed().as_secs_f64().max(1e-9) / 1e6
-}
-
-fn per_ray(total: u64, rays: u64) -> f64 {
-    if rays == 0 {
-        0.0
-    } else {
-        total as f64 / rays as f64
-    }
 }
 
 fn print_table(r: &MeshReport) {
