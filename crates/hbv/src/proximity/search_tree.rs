@@ -155,7 +155,8 @@ impl SearchTree {
                 .then(|| (slots.clone(), boxes.clone()));
             let mut given = 0u32;
             for (k, slot) in slots.into_iter().enumerate() {
-                match slot {
+                // The members of the child node the slot becomes, or a leaf planned here.
+                let child_members = match slot {
                     Slot::Leaf(id) => {
                         let first = planned.groups.len() as u32;
                         let count = search.plan_leaf(tree, mesh, id, &mut planned);
@@ -166,26 +167,18 @@ impl SearchTree {
                             node.triangles[k] = count;
                             given |= 1 << k;
                         }
+                        continue;
                     }
-                    Slot::Node(id) => {
-                        let child = search.nodes.len();
-                        search.nodes.push(QuadNode::EMPTY);
-                        let node = &mut search.nodes[index];
-                        node.set_bounds(k, boxes[k]);
-                        node.child[k] = child as u32;
-                        given |= 1 << k;
-                        pending.push((tree.node(id).children().to_vec(), child));
-                    }
-                    Slot::Group(ids) => {
-                        let child = search.nodes.len();
-                        search.nodes.push(QuadNode::EMPTY);
-                        let node = &mut search.nodes[index];
-                        node.set_bounds(k, boxes[k]);
-                        node.child[k] = child as u32;
-                        given |= 1 << k;
-                        pending.push((ids, child));
-                    }
-                }
+                    Slot::Node(id) => tree.node(id).children().to_vec(),
+                    Slot::Group(ids) => ids,
+                };
+                let child = search.nodes.len();
+                search.nodes.push(QuadNode::EMPTY);
+                let node = &mut search.nodes[index];
+                node.set_bounds(k, boxes[k]);
+                node.child[k] = child as u32;
+                given |= 1 << k;
+                pending.push((child_members, child));
             }
             if let Some((slots, aligned)) = trial {
                 frame_trials.push((index, slots, aligned, given));
