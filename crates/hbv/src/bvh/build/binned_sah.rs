@@ -417,6 +417,7 @@ fn partition(prims: &mut [PrimRef], goes_left: impl Fn(Vec3A) -> bool) -> (usize
 mod tests {
     use super::*;
     use crate::bvh::build::primitive_bounds;
+    use crate::bvh::build::range_tree::assert_median_splits_past_the_depth_limit;
     use crate::bvh::cost::{sah_cost, SahWeights};
     use crate::mesh::procedural::unit_triangles_at;
     use crate::mesh::procedural::{default_scene, torus};
@@ -538,28 +539,9 @@ mod tests {
 
     #[test]
     fn past_the_depth_limit_splits_are_object_medians() {
-        // 90 triangles in a row and 10 far away: the SAH splits 90 | 10, the median 50 | 50.
-        let corners: Vec<Vec3> = (0..90)
-            .map(|i| Vec3::new(i as f32 * 0.01, 0.0, 0.0))
-            .chain((0..10).map(|i| Vec3::new(1000.0 + i as f32 * 0.01, 0.0, 0.0)))
-            .collect();
-        let mesh = unit_triangles_at(&corners);
-        let root_split = |root_depth| {
-            let tree = builder(16, 4).build_with_root_depth(&mesh, root_depth);
-            tree.validate(&primitive_bounds(&mesh), 4).unwrap();
-            let root = tree.node(tree.root().unwrap());
-            let sizes: Vec<usize> = root
-                .children()
-                .iter()
-                .map(|&c| leaf_sets(&tree, c).len())
-                .collect();
-            (sizes, tree.shape().depth_max)
-        };
-        let (sah_sizes, _) = root_split(0);
-        assert!(sah_sizes.contains(&10), "{sah_sizes:?}");
-        let (median_sizes, depth) = root_split(SAH_DEPTH_LIMIT);
-        assert_eq!(median_sizes, [50, 50]);
-        assert_eq!(depth, 5, "balanced down to leaves of 4");
+        assert_median_splits_past_the_depth_limit(|mesh, root_depth| {
+            builder(16, 4).build_with_root_depth(mesh, root_depth)
+        });
     }
 
     #[test]

@@ -203,6 +203,41 @@ impl<'a> Subtree<'a> {
     }
 }
 
+/// What [`SAH_DEPTH_LIMIT`] promises, checked for an SAH builder: 90 triangles in a row and 10
+/// far away, which the SAH splits 90 | 10 at the root, are split at the object median (50 | 50)
+/// when the root is built at the limit, and halved on down to leaves of 4. `build(mesh,
+/// root_depth)` is the builder, with leaves of at most 4 triangles, putting its root at
+/// `root_depth`.
+#[cfg(test)]
+pub(super) fn assert_median_splits_past_the_depth_limit(
+    build: impl Fn(&TriangleMesh, u32) -> BuildTree,
+) {
+    use crate::bvh::build::primitive_bounds;
+    use crate::mesh::procedural::unit_triangles_at;
+
+    let corners: Vec<Vec3> = (0..90)
+        .map(|i| Vec3::new(i as f32 * 0.01, 0.0, 0.0))
+        .chain((0..10).map(|i| Vec3::new(1000.0 + i as f32 * 0.01, 0.0, 0.0)))
+        .collect();
+    let mesh = unit_triangles_at(&corners);
+    let root_split = |root_depth| {
+        let tree = build(&mesh, root_depth);
+        tree.validate(&primitive_bounds(&mesh), 4).unwrap();
+        let root = tree.node(tree.root().unwrap());
+        let sizes: Vec<usize> = root
+            .children()
+            .iter()
+            .map(|&c| tree.prims_below(c).len())
+            .collect();
+        (sizes, tree.shape().depth_max)
+    };
+    let (sah_sizes, _) = root_split(0);
+    assert!(sah_sizes.contains(&10), "{sah_sizes:?}");
+    let (median_sizes, depth) = root_split(SAH_DEPTH_LIMIT);
+    assert_eq!(median_sizes, [50, 50]);
+    assert_eq!(depth, 5, "balanced down to leaves of 4");
+}
+
 #[cfg(test)]
 mod range_tree_tests {
     use super::*;
