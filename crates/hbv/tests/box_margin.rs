@@ -6,27 +6,14 @@
 //! (found by the cache property tests). Every layout must find what brute force finds.
 
 use hbv::bvh::build::{BinnedSahBuilder, Builder};
-use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
-use hbv::bvh::BuildTree;
 use hbv::geometry::Ray;
 use hbv::glam::Vec3;
 use hbv::mesh::procedural::torus;
 use hbv::mesh::TriangleMesh;
 use hbv::{Accelerator, BruteForce};
 
-/// Every layout over the same tree, by name.
-fn every_layout(
-    tree: &BuildTree,
-    mesh: &TriangleMesh,
-) -> Vec<(&'static str, Box<dyn Accelerator>)> {
-    vec![
-        ("recursive", Box::new(RecursiveLayout::new(tree, mesh))),
-        ("skip", Box::new(SkipLayout::new(tree, mesh))),
-        ("ordered", Box::new(OrderedLayout::new(tree, mesh))),
-        ("wide4", Box::new(Wide4Layout::new(tree, mesh))),
-        ("wide8", Box::new(Wide8Layout::new(tree, mesh))),
-    ]
-}
+mod common;
+use common::every_layout;
 
 #[test]
 fn segments_ending_at_a_near_hit_find_it_in_every_layout() {

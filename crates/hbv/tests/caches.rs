@@ -2,7 +2,6 @@
 //! rays (coherent and not), wrapped around a BVH layout and around the grid.
 
 use hbv::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
-use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
 use hbv::cache::{LastHitCache, ShadowCache};
 use hbv::geometry::Ray;
 use hbv::glam::Vec3;
@@ -12,21 +11,16 @@ use hbv::{Accelerator, BruteForce, TraversalStats, TriangleMesh};
 use proptest::prelude::*;
 
 mod common;
-use common::{closed_mesh, mesh_and_rays, soup};
+use common::{closed_mesh, every_layout, mesh_and_rays, soup};
 
 fn accelerators(mesh: &TriangleMesh) -> Vec<(&'static str, Box<dyn Accelerator>)> {
     let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(mesh);
-    vec![
-        ("recursive", Box::new(RecursiveLayout::new(&tree, mesh))),
-        ("skip", Box::new(SkipLayout::new(&tree, mesh))),
-        ("ordered", Box::new(OrderedLayout::new(&tree, mesh))),
-        ("wide4", Box::new(Wide4Layout::new(&tree, mesh))),
-        ("wide8", Box::new(Wide8Layout::new(&tree, mesh))),
-        (
-            "grid",
-            Box::new(UniformGrid::new(mesh, GridConfig::default())),
-        ),
-    ]
+    let mut all = every_layout(&tree, mesh);
+    all.push((
+        "grid",
+        Box::new(UniformGrid::new(mesh, GridConfig::default())),
+    ));
+    all
 }
 
 /// Each ray of `rays` followed by a slightly moved copy (a coherent neighbour, so that caches

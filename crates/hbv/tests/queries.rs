@@ -2,14 +2,16 @@
 
 use glam::Vec3;
 use hbv::bvh::build::{Builder, InsertionBuilder, InsertionConfig, InsertionOrder};
-use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
+use hbv::bvh::layout::{Wide4Layout, Wide8Layout};
 use hbv::geometry::Ray;
 use hbv::mesh::procedural::torus;
 use hbv::{Accelerator, BruteForce, TriangleMesh};
 use proptest::prelude::*;
 
 mod common;
-use common::{assert_agrees, closed_mesh, mesh_and_coherent_rays, mesh_and_rays, order, soup};
+use common::{
+    assert_agrees, closed_mesh, every_layout, mesh_and_coherent_rays, mesh_and_rays, order, soup,
+};
 
 /// Every layout of the tree built with the given insertion options, by name.
 fn layouts(
@@ -22,13 +24,7 @@ fn layouts(
         max_leaf_size,
     })
     .build(mesh);
-    vec![
-        ("recursive", Box::new(RecursiveLayout::new(&tree, mesh))),
-        ("skip", Box::new(SkipLayout::new(&tree, mesh))),
-        ("ordered", Box::new(OrderedLayout::new(&tree, mesh))),
-        ("wide4", Box::new(Wide4Layout::new(&tree, mesh))),
-        ("wide8", Box::new(Wide8Layout::new(&tree, mesh))),
-    ]
+    every_layout(&tree, mesh)
 }
 
 /// [`assert_agrees`] for every layout.

@@ -11,9 +11,26 @@ use hbv::{Accelerator, BruteForce, Hit, TriangleMesh};
 use proptest::prelude::*;
 
 mod cases;
+// Unused by the files that run no property tests (box_margin.rs).
+#[allow(unused_imports)]
 pub use cases::cases;
 
-/// Brute force and every layout over `tree`, by name.
+/// Every layout over `tree`, by name.
+pub fn every_layout(
+    tree: &hbv::bvh::BuildTree,
+    mesh: &TriangleMesh,
+) -> Vec<(&'static str, Box<dyn Accelerator>)> {
+    use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
+    vec![
+        ("recursive", Box::new(RecursiveLayout::new(tree, mesh))),
+        ("skip", Box::new(SkipLayout::new(tree, mesh))),
+        ("ordered", Box::new(OrderedLayout::new(tree, mesh))),
+        ("wide4", Box::new(Wide4Layout::new(tree, mesh))),
+        ("wide8", Box::new(Wide8Layout::new(tree, mesh))),
+    ]
+}
+
+/// Brute force and every layout over `tree` but the recursive one, by name.
 pub fn every_accelerator(
     tree: &hbv::bvh::BuildTree,
     mesh: &TriangleMesh,
