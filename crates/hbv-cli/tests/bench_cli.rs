@@ -27,9 +27,8 @@ fn hbv(args: &[&str]) -> Output {
 const LAYOUTS: [&str; 5] = ["recursive", "skip", "ordered", "wide4", "wide8"];
 
 /// (ray set, query) pairs measured for every layout.
-const CASES: [(&str, &str); 5] = [
+const CASES: [(&str, &str); 4] = [
     ("primary", "closest"),
-    ("primary", "packets"),
     ("diffuse", "closest"),
     ("diffuse", "occluded"),
     ("shadow", "occluded"),

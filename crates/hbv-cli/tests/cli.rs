@@ -111,19 +111,19 @@ fn assert_trace_matches_brute_force(
     let occluded = hit_file::read_occlusion(&occ_path).unwrap();
     assert_eq!(occluded, brute.occluded_batch(rays));
 
-    // Packets of coherent rays give the same answers, whatever the rays.
-    let coherent_path = dir.join("coherent.npz");
+    // Without packets of coherent rays, the same answers, whatever the rays.
+    let alone_path = dir.join("alone.npz");
     let out = hbv(&[
         "trace",
         m,
         "--rays",
         r,
         "--out",
-        coherent_path.to_str().unwrap(),
-        "--coherent",
+        alone_path.to_str().unwrap(),
+        "--no-packets",
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
-    assert_eq!(hit_file::read_hits(&coherent_path).unwrap(), got);
+    assert_eq!(hit_file::read_hits(&alone_path).unwrap(), got);
 
     // One call per ray gives the interleaved batch's answers, for both queries.
     let single_path = dir.join("single.npz");

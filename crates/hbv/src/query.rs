@@ -126,32 +126,7 @@ pub trait Accelerator: Send + Sync {
             .for_each(|(rays, occluded)| self.occluded_into(rays, occluded));
         occluded
     }
-
-    /// Closest hits of rays given in a *coherent* order (neighbours nearly parallel and from
-    /// nearby origins, like camera rays in pixel order), in parallel. Structures with a packet
-    /// path trace each group of [`PACKET_SIZE`] consecutive rays together (see
-    /// [`WideLayout`](crate::bvh::layout::WideLayout)); the others trace them one by one. The
-    /// answers are exactly [`Accelerator::intersect`]'s, in any order; only the speed differs.
-    fn intersect_coherent(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
-        self.intersect_batch(rays)
-    }
-
-    /// [`Accelerator::intersect_coherent`] on one thread, adding the work done to `stats`: a
-    /// packet's node visits and box tests are counted once for the packet, its triangle tests
-    /// once per ray, so that the figures per ray show what the packet saves.
-    fn intersect_coherent_counted(
-        &self,
-        rays: &[Ray],
-        stats: &mut TraversalStats,
-    ) -> Vec<Option<Hit>> {
-        rays.iter()
-            .map(|r| self.intersect_counted(r, stats))
-            .collect()
-    }
 }
-
-/// Rays traced together by [`Accelerator::intersect_coherent`].
-pub const PACKET_SIZE: usize = 8;
 
 /// Rays handed to one rayon task at least: enough to hide the scheduling cost (~1 µs) behind
 /// work (~1 µs per ray), few enough to balance load on many cores.
@@ -167,24 +142,6 @@ pub trait TraversalKernel: Send + Sync {
 
     /// Any hit, counting into `counter`. The ray is valid (checked by the caller).
     fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool;
-
-    /// Closest hits of up to [`PACKET_SIZE`] rays, likely coherent, into `hits` (same length).
-    /// Rays may be invalid (they miss). The default traces them one by one; structures with a
-    /// packet traversal override it.
-    fn closest_hit_packet<C: Counter>(
-        &self,
-        rays: &[Ray],
-        hits: &mut [Option<Hit>],
-        counter: &mut C,
-    ) {
-        for (ray, hit) in rays.iter().zip(hits.iter_mut()) {
-            *hit = if ray.is_valid() {
-                self.closest_hit(ray, counter)
-            } else {
-                None
-            };
-        }
-    }
 
     /// Any hit, returning the blocking triangle, counting into `counter`. The ray is valid.
     /// Default: the closest hit's triangle; kernels that can stop at the first hit override it.
@@ -282,31 +239,6 @@ impl<K: TraversalKernel> Accelerator for K {
                 *b = o.is_some();
             }
         }
-    }
-
-    fn intersect_coherent(&self, rays: &[Ray]) -> Vec<Option<Hit>> {
-        let mut hits = vec![None; rays.len()];
-        rays.par_chunks(BATCH_GRAIN)
-            .zip(hits.par_chunks_mut(BATCH_GRAIN))
-            .for_each(|(rays, hits)| {
-                for (rays, hits) in rays.chunks(PACKET_SIZE).zip(hits.chunks_mut(PACKET_SIZE)) {
-                    self.closest_hit_packet(rays, hits, &mut NoCount);
-                }
-            });
-        hits
-    }
-
-    fn intersect_coherent_counted(
-        &self,
-        rays: &[Ray],
-        stats: &mut TraversalStats,
-    ) -> Vec<Option<Hit>> {
-        let mut hits = vec![None; rays.len()];
-        for (rays, hits) in rays.chunks(PACKET_SIZE).zip(hits.chunks_mut(PACKET_SIZE)) {
-            stats.rays += rays.len() as u64;
-            self.closest_hit_packet(rays, hits, stats);
-        }
-        hits
     }
 
     #[inline]

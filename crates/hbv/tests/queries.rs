@@ -54,15 +54,19 @@ proptest! {
         assert_all_layouts_agree(&mesh, order, leaf, &rays)?;
     }
 
-    /// The packet path of `intersect_coherent` answers exactly what single rays answer (which
-    /// the tests above compare with brute force), on every layout.
+    /// Batches of coherent rays (which the wide-8 layout traces eight at a time, as packets)
+    /// answer exactly what single rays answer (which the tests above compare with brute force),
+    /// on every layout, and on the wide-8 layout with its packets off.
     #[test]
-    fn coherent_packets_answer_like_single_rays((mesh, rays) in mesh_and_coherent_rays(prop_oneof![soup(), closed_mesh()]), order in order(), leaf in 1usize..5) {
-        for (name, accel) in layouts(&mesh, order, leaf) {
+    fn coherent_batches_answer_like_single_rays((mesh, rays) in mesh_and_coherent_rays(prop_oneof![soup(), closed_mesh()]), order in order(), leaf in 1usize..5) {
+        let mut all = layouts(&mesh, order, leaf);
+        let tree = InsertionBuilder::new(InsertionConfig { order, max_leaf_size: leaf }).build(&mesh);
+        all.push(("wide8 without packets", Box::new(Wide8Layout::new(&tree, &mesh).with_ray_packets(false))));
+        for (name, accel) in all {
             let single: Vec<_> = rays.iter().map(|r| accel.intersect(r)).collect();
-            prop_assert_eq!(&accel.intersect_coherent(&rays), &single, "{}", name);
-            let mut stats = hbv::TraversalStats::default();
-            prop_assert_eq!(&accel.intersect_coherent_counted(&rays, &mut stats), &single, "{} (counted)", name);
+            prop_assert_eq!(&accel.intersect_batch(&rays), &single, "{}", name);
+            let blocked: Vec<_> = rays.iter().map(|r| accel.occluded(r)).collect();
+            prop_assert_eq!(&accel.occluded_batch(&rays), &blocked, "{}", name);
         }
     }
 

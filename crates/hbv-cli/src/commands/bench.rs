@@ -14,7 +14,6 @@ use hbv::atomic_file::Replace;
 use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
 use hbv::bvh::BuildTree;
 use hbv::geometry::Ray;
-use hbv::query::PACKET_SIZE;
 use hbv::{Accelerator, TraversalStats, TriangleMesh};
 use hbv_cli::output_check::{check_output_folder, replace_policy};
 use hbv_cli::ray_file;
@@ -74,8 +73,6 @@ pub struct BenchArgs {
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Query {
     Closest,
-    /// Closest hit through [`Accelerator::intersect_coherent`]: packets of consecutive rays.
-    Coherent,
     Occluded,
 }
 
@@ -83,18 +80,15 @@ impl Query {
     fn name(self) -> &'static str {
         match self {
             Query::Closest => "closest",
-            Query::Coherent => "packets",
             Query::Occluded => "occluded",
         }
     }
 }
 
-/// What is measured on each set: camera and bounce rays want the closest hit (camera rays also
-/// through the packet path for coherent rays); shadow rays, and bounce rays used as
-/// ambient-occlusion probes, only whether anything is hit.
-const CASES: [(RaySet, Query); 5] = [
+/// What is measured on each set: camera and bounce rays want the closest hit; shadow rays, and
+/// bounce rays used as ambient-occlusion probes, only whether anything is hit.
+const CASES: [(RaySet, Query); 4] = [
     (RaySet::Primary, Query::Closest),
-    (RaySet::Primary, Query::Coherent),
     (RaySet::Diffuse, Query::Closest),
     (RaySet::Diffuse, Query::Occluded),
     (RaySet::Shadow, Query::Occluded),
@@ -394,12 +388,8 @@ fn time_runs(
     let timed = || -> (f64, usize) {
         let start = Instant::now();
         match query {
-            Query::Closest | Query::Coherent => {
-                let hits = if query == Query::Coherent {
-                    accel.intersect_coherent(rays)
-                } else {
-                    accel.intersect_batch(rays)
-                };
+            Query::Closest => {
+                let hits = accel.intersect_batch(rays);
                 let seconds = start.elapsed().as_secs_f64();
                 (seconds, hits.iter().filter(|h| h.is_some()).count())
             }
@@ -422,9 +412,9 @@ fn time_runs(
     })
 }
 
-/// Work of `query` on at most `count` rays spread evenly over `rays` (every k-th, or for packets
-/// every k-th packet of consecutive rays), so that a camera subsample covers the whole image and
-/// not its top rows.
+/// Work of `query` on at most `count` rays spread evenly over `rays` (every k-th), so that a
+/// camera subsample covers the whole image and not its top rows. (Counted ray by ray: what the
+/// wide-8 layout's packets of coherent rays share is not counted.)
 fn count_tests(
     accel: &dyn Accelerator,
     rays: &[Ray],
@@ -436,15 +426,9 @@ fn count_tests(
         return stats;
     }
     let stride = rays.len().div_ceil(count).max(1);
-    if query == Query::Coherent {
-        for packet in rays.chunks(PACKET_SIZE).step_by(stride) {
-            accel.intersect_coherent_counted(packet, &mut stats);
-        }
-        return stats;
-    }
     for ray in rays.iter().step_by(stride) {
         match query {
-            Query::Closest | Query::Coherent => {
+            Query::Closest => {
                 accel.intersect_counted(ray, &mut stats);
             }
             Query::Occluded => {

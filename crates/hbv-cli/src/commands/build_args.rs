@@ -50,12 +50,23 @@ pub enum LayoutName {
 impl LayoutName {
     /// Lays `tree` out for tracing.
     pub fn lay_out(self, tree: &BuildTree, mesh: &TriangleMesh) -> Box<dyn Accelerator> {
+        self.lay_out_with(tree, mesh, true)
+    }
+
+    /// [`LayoutName::lay_out`], with the wide-8 layout's packets of coherent rays on or off
+    /// ([`Wide8Layout::with_ray_packets`]; the other layouts have none).
+    pub fn lay_out_with(
+        self,
+        tree: &BuildTree,
+        mesh: &TriangleMesh,
+        packets: bool,
+    ) -> Box<dyn Accelerator> {
         match self {
             LayoutName::Recursive => Box::new(RecursiveLayout::new(tree, mesh)),
             LayoutName::Skip => Box::new(SkipLayout::new(tree, mesh)),
             LayoutName::Ordered => Box::new(OrderedLayout::new(tree, mesh)),
             LayoutName::Wide4 => Box::new(Wide4Layout::new(tree, mesh)),
-            LayoutName::Wide8 => Box::new(Wide8Layout::new(tree, mesh)),
+            LayoutName::Wide8 => Box::new(Wide8Layout::new(tree, mesh).with_ray_packets(packets)),
         }
     }
 }

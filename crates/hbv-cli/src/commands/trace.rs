@@ -32,13 +32,14 @@ pub struct TraceArgs {
     /// Any-hit query: write `occluded` instead of closest hits.
     #[arg(long)]
     pub occluded: bool,
-    /// Trace closest hits in packets of 8 consecutive rays (for camera rays in pixel order). Same
-    /// answers; measured slower than the default (interleaved single rays), kept for study.
-    #[arg(long, conflicts_with = "occluded")]
-    pub coherent: bool,
+    /// Trace every ray of the batch alone (interleaved), without the wide-8 layout's packets of
+    /// coherent rays (runs of eight consecutive rays in a narrow beam, such as camera rays in
+    /// pixel order, traced together). Same answers; for comparing the two.
+    #[arg(long)]
+    pub no_packets: bool,
     /// Trace each ray on its own (`Accelerator::intersect` / `occluded`, one call per ray) instead
     /// of the interleaved batch: the speed of single-ray calls, as a renderer makes them.
-    #[arg(long, conflicts_with = "coherent")]
+    #[arg(long, conflicts_with = "no_packets")]
     pub one_by_one: bool,
     /// Worker threads; 0 uses every core.
     #[arg(long, default_value_t = 0)]
@@ -90,7 +91,9 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
             AccelName::Bvh => {
                 let (mesh, built, builder_options) = pool.install(|| scene.tree(&build));
                 let build_seconds = built.build_seconds + built.optimize_seconds;
-                let accel = args.layout.lay_out(&built.tree, &mesh);
+                let accel = args
+                    .layout
+                    .lay_out_with(&built.tree, &mesh, !args.no_packets);
                 (mesh, accel, build_seconds, builder_options)
             }
             AccelName::Grid => {
@@ -123,9 +126,7 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
                 pool.install(|| accel.occluded_batch(&rays))
             })
         } else {
-            Answers::Hits(if args.coherent {
-                pool.install(|| accel.intersect_coherent(&rays))
-            } else if args.one_by_one {
+            Answers::Hits(if args.one_by_one {
                 pool.install(|| one_by_one(&rays, |r| accel.intersect(r)))
             } else {
                 pool.install(|| accel.intersect_batch(&rays))

@@ -217,12 +217,12 @@ pub fn mesh_and_rays(
     })
 }
 
-/// Packets of coherent rays, as camera rays are: [`PACKET_SIZE`](hbv::query::PACKET_SIZE)-ray
-/// groups from one origin (or origins a hair apart) with directions a small random angle around
-/// an adversarial base direction (random, along an axis, with zero components), some with finite
+/// Packets of coherent rays, as camera rays are: groups of eight (the wide-8 layout's packets)
+/// from one origin (or origins a hair apart) with directions a small random angle around an
+/// adversarial base direction (random, along an axis, with zero components), some with finite
 /// intervals, some invalid. Consecutive groups are independent.
 pub fn coherent_rays_for(mesh: &TriangleMesh) -> impl Strategy<Value = Vec<Ray>> {
-    let packet_size = hbv::query::PACKET_SIZE;
+    let packet_size = 8;
     let single = ray_for(mesh);
     let spread = prop_oneof![Just(0.0f32), 1e-6f32..1e-3, 1e-3f32..0.2];
     let b = mesh.bounds();

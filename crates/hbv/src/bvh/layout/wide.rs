@@ -1,6 +1,7 @@
 //! Wide nodes: 4 or 8 children per node, their boxes tested together with SIMD.
 
-mod packet;
+#[cfg(target_arch = "x86_64")]
+mod ray_packet;
 mod root_filter;
 mod stream;
 mod traversal;
@@ -59,6 +60,13 @@ pub struct WideLayout<const W: usize> {
     /// its [`PreparedRay::scene_size`].
     root: Option<(u32, Aabb, f32)>,
     use_avx: bool,
+    /// Whether batches trace coherent runs of eight rays as packets ([`ray_packet`]): 8-wide
+    /// nodes on a CPU with AVX2, unless turned off ([`WideLayout::with_ray_packets`]).
+    packets_of_rays: bool,
+    /// The median over triangle packets of their box's largest extent: the size of the
+    /// patches rays tell apart at the leaves (what a packet of rays is compared with, in
+    /// [`ray_packet`]).
+    packet_extent: f32,
     /// Whether traversals prefetch the nodes they are about to visit: only for layouts larger
     /// than [`PREFETCH_ABOVE_BYTES`], which the caches nearest the core cannot hold.
     prefetch: bool,
@@ -96,6 +104,8 @@ impl<const W: usize> WideLayout<W> {
             packets: Vec::new(),
             root: None,
             use_avx: detect_avx(),
+            packets_of_rays: W == 8 && detect_avx2(),
+            packet_extent: 0.0,
             prefetch: false,
             interleave: false,
         };
@@ -104,9 +114,29 @@ impl<const W: usize> WideLayout<W> {
             let bounds = binary.node(root).bounds;
             layout.root = Some((reference, bounds, PreparedRay::scene_size(&bounds)));
         }
+        layout.packet_extent = median_packet_extent(&layout.packets);
         layout.prefetch = layout.memory_bytes() > PREFETCH_ABOVE_BYTES;
         layout.interleave = layout.memory_bytes() > INTERLEAVE_ABOVE_BYTES;
         layout
+    }
+
+    /// This layout with packets of coherent rays in its batches on (the default, where the CPU
+    /// has AVX2 and `W` is 8) or off.
+    ///
+    /// Batches ([`Accelerator::intersect_batch`](crate::Accelerator::intersect_batch),
+    /// `occluded_batch` and the `_into` forms) trace each run of eight consecutive rays that
+    /// share direction signs and dominant axis and form a narrow beam (camera rays in pixel
+    /// order, a lidar's scan lines, sunlight) as one packet, one ray per AVX lane, and the
+    /// other rays one by one, interleaved. The answers are the same either way; off, every ray
+    /// is traced alone (for comparisons of the two).
+    pub fn with_ray_packets(mut self, on: bool) -> Self {
+        self.packets_of_rays = on && W == 8 && detect_avx2();
+        self
+    }
+
+    /// Whether batches trace packets of coherent rays ([`WideLayout::with_ray_packets`]).
+    pub fn traces_ray_packets(&self) -> bool {
+        self.packets_of_rays
     }
 
     /// Whether the traversals run the AVX kernels (8-wide nodes on a CPU with AVX; only then is
@@ -392,6 +422,27 @@ fn collapse<const W: usize>(binary: &BuildTree, counts: &[u32], id: NodeId) -> V
     children
 }
 
+/// The median over `packets` of the largest extent of each packet's box (0 for none).
+fn median_packet_extent(packets: &[TrianglePacket]) -> f32 {
+    let mut extents: Vec<f32> = packets
+        .iter()
+        .map(|p| {
+            let (mut lo, mut hi) = (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY);
+            for lane in 0..4 {
+                let t = p.triangle(lane);
+                lo = lo.min(t.p0).min(t.p1).min(t.p2);
+                hi = hi.max(t.p0).max(t.p1).max(t.p2);
+            }
+            (hi - lo).max_element()
+        })
+        .collect();
+    if extents.is_empty() {
+        return 0.0;
+    }
+    let middle = extents.len() / 2;
+    *extents.select_nth_unstable_by(middle, f32::total_cmp).1
+}
+
 /// Number of triangles below each node of `tree` (by node id).
 fn subtree_triangle_counts(tree: &BuildTree) -> Vec<u32> {
     let mut counts = vec![0u32; tree.nodes().len()];
@@ -405,6 +456,17 @@ fn subtree_triangle_counts(tree: &BuildTree) -> Vec<u32> {
         };
     }
     counts
+}
+
+fn detect_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    {
+        std::arch::is_x86_feature_detected!("avx") && std::arch::is_x86_feature_detected!("avx2")
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        false
+    }
 }
 
 fn detect_avx() -> bool {
@@ -578,6 +640,14 @@ impl<const W: usize> WideLayout<W> {
         }
     }
 
+    /// The triangle packets of leaf reference `leaf` (bit [`LEAF`] set).
+    #[inline(always)]
+    fn leaf_packets(&self, leaf: u32) -> &[TrianglePacket] {
+        let first = (leaf & LEAF_FIRST_MASK) as usize;
+        let count = ((leaf & !LEAF) >> LEAF_COUNT_SHIFT) as usize + 1;
+        &self.packets[first..first + count]
+    }
+
     /// The face id of a triangle of the `count` packets from `first` that the ray hits, if any.
     /// (The first packet before the loop, as in [`WideLayout::closest_hit_in_leaf`].)
     #[inline(always)]
@@ -737,16 +807,15 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
         self.any_hit_with::<C, DefaultBoxes>(ray, counter)
     }
 
-    fn closest_hit_packet<C: Counter>(
-        &self,
-        rays: &[Ray],
-        hits: &mut [Option<Hit>],
-        counter: &mut C,
-    ) {
-        self.closest_hit_packet_dispatch(rays, hits, counter)
-    }
-
     fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        #[cfg(target_arch = "x86_64")]
+        if self.packets_of_rays {
+            // SAFETY: set only for W == 8 (so the cast is to the same type) on a CPU that
+            // reported AVX and AVX2.
+            return unsafe {
+                (*(self as *const Self as *const WideLayout<8>)).closest_hits_in_packets(rays, hits)
+            };
+        }
         #[cfg(target_arch = "x86_64")]
         if self.traverses_with_avx() {
             // SAFETY: `use_avx` is set only when the CPU reported AVX.
@@ -758,6 +827,19 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
     fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
         // Chosen before the kernel is entered, so that each kernel holds one traversal loop.
         let nearest_first = self.mostly_from_outside(rays);
+        #[cfg(target_arch = "x86_64")]
+        if self.packets_of_rays {
+            // SAFETY: set only for W == 8 (so the cast is to the same type) on a CPU that
+            // reported AVX and AVX2.
+            return unsafe {
+                let layout = &*(self as *const Self as *const WideLayout<8>);
+                if nearest_first {
+                    layout.occluders_in_packets::<true>(rays, occluders)
+                } else {
+                    layout.occluders_in_packets::<false>(rays, occluders)
+                }
+            };
+        }
         #[cfg(target_arch = "x86_64")]
         if self.traverses_with_avx() {
             // SAFETY: `use_avx` is set only when the CPU reported AVX.

@@ -87,8 +87,8 @@ pub(super) fn all_candidates(_: &[Ray; 8], _: &Aabb, _: f32) -> u32 {
 ///   far = min over axes of (far plane − o) inv, and tmax + m;   met if near ≤ far + s
 /// ```
 ///
-/// The eight rays are read as the rows of an 8 × 8 matrix (a [`Ray`] is eight floats: origin,
-/// direction, tmin, tmax) and transposed in registers into one vector per component.
+/// The eight rays are read as the rows of an 8 × 8 matrix and transposed in registers
+/// ([`RayColumns::of`]); [`RootTest::of`] is the test itself.
 ///
 /// # Safety
 /// The CPU has AVX.
@@ -96,48 +96,106 @@ pub(super) fn all_candidates(_: &[Ray; 8], _: &Aabb, _: f32) -> u32 {
 #[target_feature(enable = "avx")]
 #[inline]
 pub(super) unsafe fn root_candidates_avx(rays: &[Ray; 8], bounds: &Aabb, scene_size: f32) -> u32 {
-    use std::arch::x86_64::*;
-    const _: () = assert!(std::mem::size_of::<Ray>() == 32);
-    // SAFETY: the caller guarantees AVX; `Ray` is `repr(C)` with eight `f32` fields (origin x,
-    // y, z, direction x, y, z, tmin, tmax), so each of the eight loads reads one ray.
-    unsafe {
-        let row = |i: usize| _mm256_loadu_ps(&rays[i] as *const Ray as *const f32);
-        // Rows of rays -> columns of components.
-        let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
-        let (r4, r5, r6, r7) = (row(4), row(5), row(6), row(7));
-        let (t0, t1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpackhi_ps(r0, r1));
-        let (t2, t3) = (_mm256_unpacklo_ps(r2, r3), _mm256_unpackhi_ps(r2, r3));
-        let (t4, t5) = (_mm256_unpacklo_ps(r4, r5), _mm256_unpackhi_ps(r4, r5));
-        let (t6, t7) = (_mm256_unpacklo_ps(r6, r7), _mm256_unpackhi_ps(r6, r7));
-        let (q0, q1) = (
-            _mm256_shuffle_ps::<0x44>(t0, t2),
-            _mm256_shuffle_ps::<0xee>(t0, t2),
-        );
-        let (q2, q3) = (
-            _mm256_shuffle_ps::<0x44>(t1, t3),
-            _mm256_shuffle_ps::<0xee>(t1, t3),
-        );
-        let (q4, q5) = (
-            _mm256_shuffle_ps::<0x44>(t4, t6),
-            _mm256_shuffle_ps::<0xee>(t4, t6),
-        );
-        let (q6, q7) = (
-            _mm256_shuffle_ps::<0x44>(t5, t7),
-            _mm256_shuffle_ps::<0xee>(t5, t7),
-        );
-        let origin = [
-            _mm256_permute2f128_ps::<0x20>(q0, q4),
-            _mm256_permute2f128_ps::<0x20>(q1, q5),
-            _mm256_permute2f128_ps::<0x20>(q2, q6),
-        ];
-        let direction = [
-            _mm256_permute2f128_ps::<0x20>(q3, q7),
-            _mm256_permute2f128_ps::<0x31>(q0, q4),
-            _mm256_permute2f128_ps::<0x31>(q1, q5),
-        ];
-        let tmin = _mm256_permute2f128_ps::<0x31>(q2, q6);
-        let tmax = _mm256_permute2f128_ps::<0x31>(q3, q7);
+    // SAFETY: the caller guarantees AVX.
+    unsafe { RootTest::of(&RayColumns::of(rays), bounds, scene_size).met }
+}
 
+/// Eight rays as columns, one AVX register per component: lane `i` holds ray `i`'s.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+pub(super) struct RayColumns {
+    pub origin: [std::arch::x86_64::__m256; 3],
+    pub direction: [std::arch::x86_64::__m256; 3],
+    pub tmin: std::arch::x86_64::__m256,
+    pub tmax: std::arch::x86_64::__m256,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl RayColumns {
+    /// The columns of `rays`, read as the rows of an 8 × 8 matrix (a [`Ray`] is eight floats:
+    /// origin, direction, tmin, tmax) and transposed in registers.
+    ///
+    /// # Safety
+    /// The CPU has AVX.
+    #[target_feature(enable = "avx")]
+    #[inline]
+    pub unsafe fn of(rays: &[Ray; 8]) -> Self {
+        use std::arch::x86_64::*;
+        const _: () = assert!(std::mem::size_of::<Ray>() == 32);
+        // SAFETY: the caller guarantees AVX; `Ray` is `repr(C)` with eight `f32` fields (origin
+        // x, y, z, direction x, y, z, tmin, tmax), so each of the eight loads reads one ray.
+        unsafe {
+            let row = |i: usize| _mm256_loadu_ps(&rays[i] as *const Ray as *const f32);
+            // Rows of rays -> columns of components.
+            let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+            let (r4, r5, r6, r7) = (row(4), row(5), row(6), row(7));
+            let (t0, t1) = (_mm256_unpacklo_ps(r0, r1), _mm256_unpackhi_ps(r0, r1));
+            let (t2, t3) = (_mm256_unpacklo_ps(r2, r3), _mm256_unpackhi_ps(r2, r3));
+            let (t4, t5) = (_mm256_unpacklo_ps(r4, r5), _mm256_unpackhi_ps(r4, r5));
+            let (t6, t7) = (_mm256_unpacklo_ps(r6, r7), _mm256_unpackhi_ps(r6, r7));
+            let (q0, q1) = (
+                _mm256_shuffle_ps::<0x44>(t0, t2),
+                _mm256_shuffle_ps::<0xee>(t0, t2),
+            );
+            let (q2, q3) = (
+                _mm256_shuffle_ps::<0x44>(t1, t3),
+                _mm256_shuffle_ps::<0xee>(t1, t3),
+            );
+            let (q4, q5) = (
+                _mm256_shuffle_ps::<0x44>(t4, t6),
+                _mm256_shuffle_ps::<0xee>(t4, t6),
+            );
+            let (q6, q7) = (
+                _mm256_shuffle_ps::<0x44>(t5, t7),
+                _mm256_shuffle_ps::<0xee>(t5, t7),
+            );
+            Self {
+                origin: [
+                    _mm256_permute2f128_ps::<0x20>(q0, q4),
+                    _mm256_permute2f128_ps::<0x20>(q1, q5),
+                    _mm256_permute2f128_ps::<0x20>(q2, q6),
+                ],
+                direction: [
+                    _mm256_permute2f128_ps::<0x20>(q3, q7),
+                    _mm256_permute2f128_ps::<0x31>(q0, q4),
+                    _mm256_permute2f128_ps::<0x31>(q1, q5),
+                ],
+                tmin: _mm256_permute2f128_ps::<0x31>(q2, q6),
+                tmax: _mm256_permute2f128_ps::<0x31>(q3, q7),
+            }
+        }
+    }
+}
+
+/// The root box test of eight rays ([`root_candidates_avx`]), with the constants of each ray
+/// it computed on the way: its reciprocal direction ([`PreparedRay::inverse_of`]) and its
+/// margins ([`PreparedRay::margins`]), lane by lane the same bits.
+#[cfg(target_arch = "x86_64")]
+pub(super) struct RootTest {
+    /// Bit `i`: ray `i` meets the root box (meaningless for an invalid ray).
+    pub met: u32,
+    pub inverse: [std::arch::x86_64::__m256; 3],
+    pub box_margin: std::arch::x86_64::__m256,
+    pub slab_margin: std::arch::x86_64::__m256,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl RootTest {
+    /// The test of `rays` against the box `bounds` (the root's, of
+    /// [`PreparedRay::scene_size`] `scene_size`).
+    ///
+    /// # Safety
+    /// The CPU has AVX.
+    #[target_feature(enable = "avx")]
+    #[inline]
+    pub unsafe fn of(rays: &RayColumns, bounds: &Aabb, scene_size: f32) -> Self {
+        use std::arch::x86_64::*;
+        let RayColumns {
+            origin,
+            direction,
+            tmin,
+            tmax,
+        } = *rays;
         let sign_bit = _mm256_set1_ps(-0.0);
         let abs = |x: __m256| _mm256_andnot_ps(sign_bit, x);
         let infinity = _mm256_set1_ps(f32::INFINITY);
@@ -197,7 +255,12 @@ pub(super) unsafe fn root_candidates_avx(rays: &[Ray; 8], bounds: &Aabb, scene_s
             _mm256_min_ps(far, _mm256_add_ps(tmax, box_margin)),
             slab_margin,
         );
-        _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32
+        Self {
+            met: _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(near, far)) as u32,
+            inverse,
+            box_margin,
+            slab_margin,
+        }
     }
 }
 

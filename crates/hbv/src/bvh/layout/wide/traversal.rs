@@ -74,6 +74,15 @@ impl Traversal {
         Some(Self::new(ray, box_ray, root))
     }
 
+    /// The traversal of the subtree at `node` (a node or a leaf reference) by `ray`, prepared
+    /// for the tree ([`PreparedRay::bound_errors_within`]) and known to meet `node`'s box: a ray
+    /// of a packet that goes on alone from there (`ray_packet.rs`), its `tmax` its closest hit
+    /// so far.
+    #[inline(always)]
+    pub fn in_subtree(ray: PreparedRay, box_ray: BoxRay, node: u32) -> Self {
+        Self::new(ray, box_ray, node)
+    }
+
     #[inline(always)]
     fn new(ray: PreparedRay, box_ray: BoxRay, root: u32) -> Self {
         Self {
