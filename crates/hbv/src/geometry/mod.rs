@@ -9,5 +9,5 @@ mod triangle;
 pub use aabb::Aabb;
 pub use edge_rule::EdgeRule;
 pub use ray::{PreparedRay, Ray};
-pub(crate) use triangle::{shared_edge_error, SHARED_EDGE_ERROR};
+pub(crate) use triangle::{shared_edge_error, DEPTH_FLOOR, SHARED_EDGE_ERROR};
 pub use triangle::{Triangle, TriangleHit};

@@ -74,11 +74,19 @@ impl Triangle {
     /// count), at `t = (U Az + V Bz + W Cz) / det` with `u = V / det`, `v = W / det`
     /// (`det = U + V + W`), where `Az = Sz P'[kz]` for each vertex.
     ///
-    /// One refinement: when that `t` is within its error bound (`depth_error`) of the origin (a
-    /// ray starting on the surface), its sign is rounding noise, so `t` is recomputed exactly
-    /// from the plane equation (see `plane_distance`). Elsewhere the sheared-frame `t` is kept:
-    /// it is consistent with the edge tests (both use the same rounded shear), which matters for
-    /// grazing rays.
+    /// Two refinements of that `t`, from its error bound (`depth_error`):
+    ///
+    /// - within its bound of the origin (a ray starting on the surface), its sign is rounding
+    ///   noise, so `t` is recomputed from the plane equation with the exact sign (see
+    ///   `plane_distance`);
+    /// - where the bound's edge part, which the quotient amplifies on slivers and huge triangles
+    ///   seen at a slant, exceeds [`Triangle::COARSE_DEPTH_ULPS`] ulps of `t`, or where the
+    ///   depth products fall below f32's normal range (a direction of length 1e30 on a small
+    ///   triangle), the f32 `t` may be off by far more than an ulp (1e-3 relative on a triangle
+    ///   1e-5 wide), so the triangle is decided in f64 (`intersect_near_edge`: its `t` and
+    ///   barycentrics are within an ulp or so).
+    ///
+    /// Elsewhere the sheared-frame `t` is kept, within a few ulps of the exact one.
     ///
     /// Why it is watertight, and exact: the f32 edge functions come with an error bound per edge
     /// (`edge_error`); where an edge function exceeds its bound its sign is certain (the sign of
@@ -146,8 +154,9 @@ impl Triangle {
         let az = s.z * a[kz];
         let bz = s.z * b[kz];
         let cz = s.z * c[kz];
-        let mut t = (u * az + v * bz + w * cz) / det;
-        let error = Self::depth_error(
+        let depth = u * az + v * bz + w * cz;
+        let mut t = depth / det;
+        let (error, amplified) = Self::depth_error(
             ma.max(mb).max(mc),
             s.z,
             eu.max(ev).max(ew),
@@ -155,6 +164,11 @@ impl Triangle {
             t,
             det,
         );
+        if t.abs() > error && Self::depth_is_coarse(depth, amplified, t) {
+            // A sliver (or a depth below f32's normal range): f64 decides, with the signs found
+            // certain here.
+            return self.intersect_near_edge(ray, [u, v, w], [eu, ev, ew], rule);
+        }
         if t.abs() <= error {
             // The hit is within its error bound of the origin, so the sign of `t` is rounding
             // noise: whether it lies before or after `tmin` is decided by the exact plane
@@ -186,6 +200,9 @@ impl Triangle {
     /// leaving a surface beside a 1,500-long sliver met it at `t = 0.035` where the exact
     /// plane distance was `−0.00014`.)
     ///
+    /// Returns the bound and its second term (the amplified edge error, which
+    /// [`Triangle::depth_is_coarse`] weighs).
+    ///
     /// The wide layouts' packet test computes the same bound with its shared `e`, never
     /// smaller, in the same order: what it decides against the interval, this test decides
     /// alike.
@@ -197,12 +214,41 @@ impl Triangle {
         depths: [f32; 3],
         t: f32,
         det: f32,
-    ) -> f32 {
+    ) -> (f32, f32) {
         let [az, bz, cz] = depths;
         let spread = ((az - t).abs() + (bz - t).abs()) + (cz - t).abs();
-        Self::NEAR_ORIGIN_ULPS * f32::EPSILON * max_component * shear_z.abs()
-            + edge_error * spread / det.abs()
+        let amplified = edge_error * spread / det.abs();
+        (
+            Self::NEAR_ORIGIN_ULPS * f32::EPSILON * max_component * shear_z.abs() + amplified,
+            amplified,
+        )
     }
+
+    /// Whether the f32 `t` of [`Triangle::intersect`] (from `depth = U Az + V Bz + W Cz`, with
+    /// [`Triangle::depth_error`]'s amplified edge error `amplified`) is too coarse to report:
+    ///
+    /// ```text
+    ///   amplified > COARSE_DEPTH_ULPS · ε · |t|     or     |depth| < 2^-100
+    /// ```
+    ///
+    /// The first is a sliver or a huge triangle seen at a slant, where `det` is small against
+    /// the edge functions' error. On ordinary triangles that term is 8 to 64 `ε |t|` (a bound:
+    /// the error itself is 1 to 3 ulps). Measured over the hits of random rays on the six
+    /// meshes of `../shared/scenes` (scans and models, 36 to 871,414 triangles; BENCHMARKS.md,
+    /// session 18): below 256 the error stays within about 10 ulps; 0.2–0.7 % of hits lie
+    /// above, and their error grows with the term (1e-3 relative on a triangle 1e-5 wide). The
+    /// second is a depth whose products may have left f32's normal range and lost their
+    /// precision (each product's absolute error is then up to 2^-150, which `det` may
+    /// amplify); above 2^-100 that is below 2^-48 of `t`. A NaN (an overflow) is neither: such
+    /// a `t` is no hit.
+    #[inline(always)]
+    pub(crate) fn depth_is_coarse(depth: f32, amplified: f32, t: f32) -> bool {
+        amplified > Self::COARSE_DEPTH_ULPS * f32::EPSILON * t.abs() || depth.abs() < DEPTH_FLOOR
+    }
+
+    /// The largest amplified edge error, in `ε |t|`, at which [`Triangle::intersect`] keeps its
+    /// f32 `t` ([`Triangle::depth_is_coarse`]).
+    pub(crate) const COARSE_DEPTH_ULPS: f32 = 256.0;
 
     /// A hit at `t` with barycentrics `(u, v)` if `t` is finite and inside `[tmin, tmax]`.
     #[inline]
@@ -500,6 +546,10 @@ fn edge_error(max_component: f32, px: f32, py: f32, qx: f32, qy: f32) -> f32 {
 fn edge_error_f64(max_component: f64, px: f64, py: f64, qx: f64, qy: f64) -> f64 {
     16.0 * f64::EPSILON * max_component * (px.abs() + py.abs() + qx.abs() + qy.abs())
 }
+
+/// The smallest depth numerator `U Az + V Bz + W Cz` whose f32 products are trusted
+/// ([`Triangle::depth_is_coarse`]): 2^-100.
+pub(crate) const DEPTH_FLOOR: f32 = f32::from_bits(27 << 23);
 
 /// `8 ε` of [`edge_error`].
 const EDGE_ERROR: f32 = 8.0 * f32::EPSILON;

@@ -37,7 +37,7 @@ use super::traversal::{Step, Traversal};
 use super::{undecided_lane, AvxBoxes, TrianglePacket, WideLayout, LEAF};
 use crate::bvh::layout::stack::TraversalStack;
 use crate::bvh::layout::wide_kernels::{BoxRay, LaneBoxes, Lanes};
-use crate::geometry::{Aabb, EdgeRule, PreparedRay, Ray, Triangle, SHARED_EDGE_ERROR};
+use crate::geometry::{Aabb, EdgeRule, PreparedRay, Ray, Triangle, DEPTH_FLOOR, SHARED_EDGE_ERROR};
 use crate::query::Hit;
 use crate::stats::NoCount;
 
@@ -339,14 +339,27 @@ unsafe fn test_triangle(
         _mm256_add_ps(abs(_mm256_sub_ps(za, t)), abs(_mm256_sub_ps(zb, t))),
         abs(_mm256_sub_ps(zc, t)),
     );
+    let amplified = _mm256_div_ps(_mm256_mul_ps(e, spread), abs(det));
     let error = _mm256_add_ps(
         _mm256_mul_ps(
             _mm256_mul_ps(_mm256_set1_ps(Triangle::NEAR_ORIGIN_ULPS * f32::EPSILON), m),
             abs(sz),
         ),
-        _mm256_div_ps(_mm256_mul_ps(e, spread), abs(det)),
+        amplified,
     );
     let near = _mm256_movemask_ps(_mm256_cmp_ps::<_CMP_LE_OQ>(abs(t), error)) as u32;
+    // `Triangle::depth_is_coarse`, lane by lane.
+    let coarse = _mm256_or_ps(
+        gt(
+            amplified,
+            _mm256_mul_ps(
+                _mm256_set1_ps(Triangle::COARSE_DEPTH_ULPS * f32::EPSILON),
+                abs(t),
+            ),
+        ),
+        lt(abs(depth), _mm256_set1_ps(DEPTH_FLOOR)),
+    );
+    let coarse = _mm256_movemask_ps(coarse) as u32 & !near;
     let tmin = rays.tmin;
     let beyond = _mm256_movemask_ps(lt(_mm256_add_ps(t, error), tmin)) as u32;
     let in_range = _mm256_and_ps(
@@ -358,8 +371,8 @@ unsafe fn test_triangle(
     );
     let in_range = _mm256_movemask_ps(in_range) as u32;
     LaneTest {
-        hit: open & !near & in_range,
-        undecided: uncertain | (open & near & !beyond),
+        hit: open & !near & !coarse & in_range,
+        undecided: uncertain | (open & near & !beyond) | (open & coarse),
         t,
         v,
         w,

@@ -10,7 +10,9 @@
 // The scalar twin indexes vertices, axes and lanes with counters; iterators would hide that.
 #![allow(clippy::needless_range_loop)]
 
-use crate::geometry::{shared_edge_error, PreparedRay, Triangle, TriangleHit, SHARED_EDGE_ERROR};
+use crate::geometry::{
+    shared_edge_error, PreparedRay, Triangle, TriangleHit, DEPTH_FLOOR, SHARED_EDGE_ERROR,
+};
 
 /// Four triangles, structure of arrays: `vertices[vertex][axis][lane]`, with their face ids.
 /// A leaf whose count is not a multiple of 4 repeats its last triangle in the spare lanes.
@@ -98,10 +100,12 @@ impl TrianglePacket {
     ///   miss       if some edge function is certainly positive and another certainly negative
     ///   undecided  if some |E| ≤ e                                    (near an edge: f64 decides)
     ///   t = (U Az + V Bz + W Cz) / det,   det = U + V + W
-    ///   r = 64 ε max|P − o| |Sz| + e (|Az − t| + |Bz − t| + |Cz − t|) / |det|
+    ///   r = 64 ε max|P − o| |Sz| + a,   a = e (|Az − t| + |Bz − t| + |Cz − t|) / |det|
     ///                                              (the error bound of `Triangle::depth_error`)
     ///   undecided  if |t| ≤ r and t + r ≥ tmin                       (next to the origin)
     ///   miss       if |t| ≤ r and t + r < tmin
+    ///   undecided  if a > 256 ε |t| or |U Az + V Bz + W Cz| < 2^-100
+    ///                                      (a coarse t: `Triangle::depth_is_coarse`)
     ///   hit        if tmin ≤ t ≤ tmax and t is finite, else miss
     /// ```
     #[inline]
@@ -164,8 +168,13 @@ impl TrianglePacket {
             }
             let det = u + v + w;
             let depths = [s.z * az, s.z * bz, s.z * cz];
-            let t = (u * depths[0] + v * depths[1] + w * depths[2]) / det;
-            let error = Triangle::depth_error(m, s.z, e, depths, t, det);
+            let depth = u * depths[0] + v * depths[1] + w * depths[2];
+            let t = depth / det;
+            let (error, amplified) = Triangle::depth_error(m, s.z, e, depths, t, det);
+            if t.abs() > error && Triangle::depth_is_coarse(depth, amplified, t) {
+                out.undecided |= 1 << lane;
+                continue;
+            }
             if t.abs() <= error {
                 let beyond = t + error < ray.tmin;
                 if !beyond {
@@ -263,14 +272,27 @@ impl TrianglePacket {
                 _mm_add_ps(abs(_mm_sub_ps(za, t)), abs(_mm_sub_ps(zb, t))),
                 abs(_mm_sub_ps(zc, t)),
             );
+            let amplified = _mm_div_ps(_mm_mul_ps(e, spread), abs(det));
             let error = _mm_add_ps(
                 _mm_mul_ps(
                     _mm_mul_ps(_mm_set1_ps(Triangle::NEAR_ORIGIN_ULPS * f32::EPSILON), m),
                     abs(sz),
                 ),
-                _mm_div_ps(_mm_mul_ps(e, spread), abs(det)),
+                amplified,
             );
             let near = _mm_movemask_ps(_mm_cmple_ps(abs(t), error)) as u32;
+            // `Triangle::depth_is_coarse`, lane by lane.
+            let coarse = _mm_or_ps(
+                _mm_cmpgt_ps(
+                    amplified,
+                    _mm_mul_ps(
+                        _mm_set1_ps(Triangle::COARSE_DEPTH_ULPS * f32::EPSILON),
+                        abs(t),
+                    ),
+                ),
+                _mm_cmplt_ps(abs(depth), _mm_set1_ps(DEPTH_FLOOR)),
+            );
+            let coarse = _mm_movemask_ps(coarse) as u32 & !near;
             let tmin = _mm_set1_ps(ray.tmin);
             let beyond = _mm_movemask_ps(_mm_cmplt_ps(_mm_add_ps(t, error), tmin)) as u32;
             let in_range = _mm_and_ps(
@@ -282,8 +304,8 @@ impl TrianglePacket {
             );
             let in_range = _mm_movemask_ps(in_range) as u32;
             let mut out = PacketTest {
-                hit: open & !near & in_range,
-                undecided: uncertain | (open & near & !beyond),
+                hit: open & !near & !coarse & in_range,
+                undecided: uncertain | (open & near & !beyond) | (open & coarse),
                 t: [0.0; 4],
                 v: [0.0; 4],
                 w: [0.0; 4],
