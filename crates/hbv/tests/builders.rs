@@ -226,8 +226,9 @@ fn builds_are_deterministic_whatever_the_thread_count() {
 
 #[test]
 fn extreme_coordinates_build_valid_trees() {
-    // Boxes whose centres, extents and areas overflow f32 if computed carelessly.
-    let big = f32::MAX;
+    // Boxes whose centres, extents and areas overflow f32 if computed carelessly (the largest
+    // coordinates a mesh may have).
+    let big = hbv::mesh::MAX_COORDINATE;
     let positions = vec![
         Vec3::new(-big, -big, 0.0),
         Vec3::new(big, -big, 0.0),

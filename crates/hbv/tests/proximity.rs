@@ -576,6 +576,48 @@ fn contains_matches_a_sphere() {
     assert!(checked > 7000);
 }
 
+/// A sphere of radius 1.9 and points around it, and the same scaled by 2^126 (exactly: a radius
+/// of 1.6e38, within the range a mesh may have): every point is classified alike. A unit
+/// direction meets the big sphere's far side at `t` beyond `f32::MAX` from most of the points;
+/// the inside test dropped that crossing, and points outside came out inside (a new user's
+/// sweep).
+#[test]
+fn contains_is_the_same_at_the_top_of_the_f32_range() {
+    let scale = 2f32.powi(126);
+    let small = icosphere(Vec3::ZERO, 1.9, 2);
+    let big = TriangleMesh::new(
+        small.positions().iter().map(|&p| p * scale).collect(),
+        small.indices().to_vec(),
+    )
+    .unwrap();
+    let layout = |m: &TriangleMesh| {
+        Wide8Layout::new(
+            &BinnedSahBuilder::new(BinnedSahConfig::default()).build(m),
+            m,
+        )
+    };
+    let (small_bvh, big_bvh) = (layout(&small), layout(&big));
+    let (mut inside, mut outside) = (0, 0);
+    for i in 0..16 {
+        for j in 0..16 {
+            for k in 0..16 {
+                let p = (Vec3::new(i as f32, j as f32, k as f32) / 15.0 - 0.5) * 5.0;
+                let expected = contains(&small_bvh, p);
+                assert_eq!(contains(&big_bvh, p * scale), expected, "{p:?}");
+                if expected {
+                    inside += 1;
+                } else {
+                    outside += 1;
+                }
+            }
+        }
+    }
+    assert!(
+        inside > 500 && outside > 1500,
+        "{inside} inside, {outside} outside"
+    );
+}
+
 /// A cube and grid points: rays from the centre and from symmetric points must not be fooled
 /// by the diagonals and edges that axis-aligned meshes line up with.
 #[test]

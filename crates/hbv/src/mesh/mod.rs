@@ -31,8 +31,15 @@ pub struct TriangleMesh {
     degenerate: usize,
 }
 
+/// The largest vertex coordinate a mesh may have, in magnitude: `f32::MAX / 2`. Beyond it the
+/// difference of two coordinates, and with it a ray's distance to a vertex or a box's extent,
+/// may overflow, and the structures' conservative tests no longer hold (found by a new user's
+/// sweep: on a box with corners at ±3e38 some layouts missed hits that others found).
+pub const MAX_COORDINATE: f32 = f32::MAX / 2.0;
+
 impl TriangleMesh {
-    /// Builds a mesh from positions and triangles, checking indices and coordinates.
+    /// Builds a mesh from positions and triangles, checking indices and coordinates: every
+    /// coordinate finite and at most [`MAX_COORDINATE`] in magnitude, every index in range.
     pub fn new(positions: Vec<Vec3>, indices: Vec<[u32; 3]>) -> Result<Self, MeshError> {
         Self::from_parts(MeshSource::Arrays, positions, indices)
     }
@@ -48,6 +55,20 @@ impl TriangleMesh {
                 source,
                 format!("vertex {i}"),
                 format!("coordinate is not finite: {}", positions[i]),
+            ));
+        }
+        if let Some(i) = positions
+            .iter()
+            .position(|p| p.abs().max_element() > MAX_COORDINATE)
+        {
+            return Err(MeshError::invalid(
+                source,
+                format!("vertex {i}"),
+                format!(
+                    "coordinate beyond ±{MAX_COORDINATE:e} (f32::MAX / 2), where the differences \
+                     of coordinates overflow: {}",
+                    positions[i]
+                ),
             ));
         }
         let n = positions.len();

@@ -16,7 +16,7 @@ use std::path::Path;
 
 use glam::Vec3;
 
-use super::{MeshError, TriangleMesh};
+use super::{MeshError, TriangleMesh, MAX_COORDINATE};
 
 /// Parses the bytes of an OBJ file (`path` names it in errors) as one triangle mesh.
 ///
@@ -93,8 +93,11 @@ pub(super) fn parse(path: &Path, bytes: &[u8]) -> Result<TriangleMesh, MeshError
             "no triangles (the file has no faces)",
         ));
     }
-    if !positions.iter().all(|p| p.is_finite()) {
-        if let Some(error) = locate_non_finite_vertex(path, bytes) {
+    if !positions
+        .iter()
+        .all(|p| p.is_finite() && p.abs().max_element() <= MAX_COORDINATE)
+    {
+        if let Some(error) = locate_bad_vertex(path, bytes) {
             return Err(error);
         }
     }
@@ -215,9 +218,10 @@ fn index_problem(index: i64, seen: usize, total: usize) -> Option<String> {
     }
 }
 
-/// Scans the file for the first `v` line whose position is not finite (as tobj computes it:
-/// f32 coordinates, divided by w when there is one), since tobj renumbers the vertices.
-fn locate_non_finite_vertex(path: &Path, bytes: &[u8]) -> Option<MeshError> {
+/// Scans the file for the first `v` line whose position is not finite or beyond
+/// [`MAX_COORDINATE`] (as tobj computes it: f32 coordinates, divided by w when there is one),
+/// since tobj renumbers the vertices.
+fn locate_bad_vertex(path: &Path, bytes: &[u8]) -> Option<MeshError> {
     for (i, line) in lossy_lines(bytes).enumerate() {
         if keyword(line.as_bytes()) != b"v" {
             continue;
@@ -232,11 +236,22 @@ fn locate_non_finite_vertex(path: &Path, bytes: &[u8]) -> Option<MeshError> {
         let (Some(x), Some(y), Some(z), Some(w)) = (number(0), number(1), number(2), w) else {
             continue;
         };
-        if !(x / w).is_finite() || !(y / w).is_finite() || !(z / w).is_finite() {
+        let p = Vec3::new(x / w, y / w, z / w);
+        if !p.is_finite() {
             return Some(MeshError::invalid(
                 path,
                 format!("line {}", i + 1),
                 format!("vertex coordinate is not finite: \"{}\"", line.trim()),
+            ));
+        }
+        if p.abs().max_element() > MAX_COORDINATE {
+            return Some(MeshError::invalid(
+                path,
+                format!("line {}", i + 1),
+                format!(
+                    "vertex coordinate beyond ±{MAX_COORDINATE:e} (f32::MAX / 2): \"{}\"",
+                    line.trim()
+                ),
             ));
         }
     }

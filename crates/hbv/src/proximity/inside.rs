@@ -73,6 +73,22 @@ fn odd_crossings<A: AllHits + ?Sized>(
     if !(point.is_finite() && ray.is_valid()) {
         return false;
     }
-    accel.all_hits(&ray, hits);
+    accel.all_hits(&Ray::new(point, reaching_every_crossing(direction)), hits);
     hits.len() % 2 == 1
+}
+
+/// `direction` (valid) scaled by the power of two that brings its largest component into
+/// `[4, 8)`: the same ray (the scaling is exact, and so is every decision of the ray's tests),
+/// whose crossings all lie at `t` below `f32::MAX`. A crossing lies on the mesh, within
+/// [`MAX_COORDINATE`](crate::mesh::MAX_COORDINATE) = `f32::MAX / 2` of the origin on each axis,
+/// and the point within `f32::MAX`: at most `√3 · 1.5 · f32::MAX` away, which `|d| ≥ 4` brings to
+/// `t ≤ 0.65 f32::MAX`. (A unit direction met a sphere of radius 1.7e38 at `t` beyond
+/// `f32::MAX`, where no f32 `t` exists, and lost the crossing: points outside it were inside.)
+fn reaching_every_crossing(direction: Vec3) -> Vec3 {
+    let largest = direction.abs().max_element();
+    // The largest component of a valid direction is a normal float: 2^exponent ≤ it < 2^(exponent + 1).
+    let exponent = (largest.to_bits() >> 23) as i32 - 127;
+    let shift = 2 - exponent;
+    // Two factors, each a power of two within f32's range.
+    direction * 2f32.powi(shift / 2) * 2f32.powi(shift - shift / 2)
 }
