@@ -80,7 +80,7 @@ impl Triangle {
     ///   noise, so `t` is recomputed from the plane equation with the exact sign (see
     ///   `plane_distance`);
     /// - where the bound's edge part, which the quotient amplifies on slivers and huge triangles
-    ///   seen at a slant, exceeds [`Triangle::COARSE_DEPTH_ULPS`] ulps of `t`, or where the
+    ///   seen at a slant, exceeds 256 ulps of `t` (`COARSE_DEPTH_ULPS`), or where the
     ///   depth products fall below f32's normal range (a direction of length 1e30 on a small
     ///   triangle), the f32 `t` may be off by far more than an ulp (1e-3 relative on a triangle
     ///   1e-5 wide), so the triangle is decided in f64 (`intersect_near_edge`: its `t` and

@@ -810,18 +810,16 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
     fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         #[cfg(target_arch = "x86_64")]
         if self.packets_of_rays {
-            // SAFETY: set only for W == 8 (so the cast is to the same type) on a CPU that
-            // reported AVX and AVX2.
-            return unsafe {
-                (*(self as *const Self as *const WideLayout<8>)).closest_hits_in_packets(rays, hits)
-            };
+            // SAFETY: set only on a CPU that reported AVX and AVX2.
+            return unsafe { self.closest_hits_avx2(rays, hits) };
         }
         #[cfg(target_arch = "x86_64")]
         if self.traverses_with_avx() {
             // SAFETY: `use_avx` is set only when the CPU reported AVX.
             return unsafe { self.closest_hits_avx(rays, hits) };
         }
-        self.trace_batch::<DefaultBoxes, _, true>(rays, hits, stream::closest_leaf_visit!())
+        let block = self.root_block::<DefaultBoxes, _>();
+        self.trace_batch::<DefaultBoxes, _, true>(rays, hits, stream::closest_leaf_visit!(), block)
     }
 
     fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
@@ -829,14 +827,12 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
         let nearest_first = self.mostly_from_outside(rays);
         #[cfg(target_arch = "x86_64")]
         if self.packets_of_rays {
-            // SAFETY: set only for W == 8 (so the cast is to the same type) on a CPU that
-            // reported AVX and AVX2.
+            // SAFETY: set only on a CPU that reported AVX and AVX2.
             return unsafe {
-                let layout = &*(self as *const Self as *const WideLayout<8>);
                 if nearest_first {
-                    layout.occluders_in_packets::<true>(rays, occluders)
+                    self.any_hits_avx2::<true>(rays, occluders)
                 } else {
-                    layout.occluders_in_packets::<false>(rays, occluders)
+                    self.any_hits_avx2::<false>(rays, occluders)
                 }
             };
         }
@@ -851,11 +847,14 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
                 }
             };
         }
-        let visit = stream::any_leaf_visit!();
+        let (visit, block) = (
+            stream::any_leaf_visit!(),
+            self.root_block::<DefaultBoxes, _>(),
+        );
         if nearest_first {
-            self.trace_batch::<DefaultBoxes, _, true>(rays, occluders, visit)
+            self.trace_batch::<DefaultBoxes, _, true>(rays, occluders, visit, block)
         } else {
-            self.trace_batch::<DefaultBoxes, _, false>(rays, occluders, visit)
+            self.trace_batch::<DefaultBoxes, _, false>(rays, occluders, visit, block)
         }
     }
 }
@@ -865,7 +864,48 @@ impl<const W: usize> WideLayout<W> {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     unsafe fn closest_hits_avx(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        self.trace_batch::<AvxBoxes, _, true>(rays, hits, stream::closest_leaf_visit!())
+        let block = self.root_block::<AvxBoxes, _>();
+        self.trace_batch::<AvxBoxes, _, true>(rays, hits, stream::closest_leaf_visit!(), block)
+    }
+
+    /// The closest-hit batch with packets of coherent rays ([`ray_packet`]), compiled with
+    /// AVX2. Call only when [`WideLayout::packets_of_rays`] is set (8-wide, AVX2).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn closest_hits_avx2(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        // SAFETY: `packets_of_rays` is set only for W == 8: the cast is to the same type.
+        let layout = unsafe { &*(self as *const Self as *const WideLayout<8>) };
+        let Some(limit) = layout.beam_limit() else {
+            return hits.fill(None);
+        };
+        // SAFETY (the closure): compiled with AVX2, as this function is.
+        let block = |eight: &[Ray; 8], out: &mut [Option<Hit>]| unsafe {
+            layout.packet_block::<ray_packet::ClosestHits>(eight, out, &limit)
+        };
+        self.trace_batch::<AvxBoxes, _, true>(rays, hits, stream::closest_leaf_visit!(), block)
+    }
+
+    /// The any-hit batch with packets of coherent rays, as
+    /// [`WideLayout::closest_hits_avx2`]; single rays take children nearest first or in lane
+    /// order, packets nearest first.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn any_hits_avx2<const NEAREST_FIRST: bool>(
+        &self,
+        rays: &[Ray],
+        occluders: &mut [Option<u32>],
+    ) {
+        // SAFETY: `packets_of_rays` is set only for W == 8: the cast is to the same type.
+        let layout = unsafe { &*(self as *const Self as *const WideLayout<8>) };
+        let Some(limit) = layout.beam_limit() else {
+            return occluders.fill(None);
+        };
+        // SAFETY (the closure): compiled with AVX2, as this function is.
+        let block = |eight: &[Ray; 8], out: &mut [Option<u32>]| unsafe {
+            layout.packet_block::<ray_packet::Occluders>(eight, out, &limit)
+        };
+        let visit = stream::any_leaf_visit!();
+        self.trace_batch::<AvxBoxes, _, NEAREST_FIRST>(rays, occluders, visit, block)
     }
 
     /// The any-hit batch compiled with AVX, children nearest first or in lane order. Call
@@ -877,6 +917,12 @@ impl<const W: usize> WideLayout<W> {
         rays: &[Ray],
         occluders: &mut [Option<u32>],
     ) {
-        self.trace_batch::<AvxBoxes, _, NEAREST_FIRST>(rays, occluders, stream::any_leaf_visit!())
+        let block = self.root_block::<AvxBoxes, _>();
+        self.trace_batch::<AvxBoxes, _, NEAREST_FIRST>(
+            rays,
+            occluders,
+            stream::any_leaf_visit!(),
+            block,
+        )
     }
 }

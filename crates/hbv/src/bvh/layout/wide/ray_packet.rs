@@ -36,7 +36,7 @@ use super::root_filter::{RayColumns, RootTest};
 use super::traversal::{Step, Traversal};
 use super::{undecided_lane, AvxBoxes, TrianglePacket, WideLayout, LEAF};
 use crate::bvh::layout::stack::TraversalStack;
-use crate::bvh::layout::wide_kernels::{BoxRay, LaneBoxes, Lanes};
+use crate::bvh::layout::wide_kernels::{LaneBoxes, Lanes};
 use crate::geometry::{Aabb, EdgeRule, PreparedRay, Ray, Triangle, DEPTH_FLOOR, SHARED_EDGE_ERROR};
 use crate::query::Hit;
 use crate::stats::NoCount;
@@ -59,19 +59,22 @@ const SINGLE_BELOW: u32 = 3;
 const MAX_BEAM_WIDTH: f32 = 4.0;
 
 /// How far apart a packet's rays may be: [`MAX_BEAM_WIDTH`] times the layout's typical
-/// triangle packet extent `L` (the median over its packets of their box's largest extent), at
-/// the distance where they can meet the tree.
+/// triangle packet extent `L` (the median over its packets of their box's largest extent),
+/// where they can meet the tree.
 ///
 /// Eight rays share the nodes of a subtree while the beam they span is narrower than the
 /// subtree's box. Near the leaves, whose boxes are about `L` across, rays farther apart than
-/// that reach different leaves, and a packet then tests eight lanes for one or two rays. A ray
-/// from `o_i` along the unit direction `u_i` is at `t` within `|o_i − o_0|∞ + t |u_i − u_0|∞`
-/// (per axis) of the packet's first ray at the same `t`; up to the far side of the tree's box,
-/// `t ≤ |c − o_0| + r` (its centre `c` and half diagonal `r`). The packet is traced as one when
-/// that bound is at most `MAX_BEAM_WIDTH · L` for every ray.
+/// that reach different leaves, and a packet then tests eight lanes for one or two rays. In
+/// the frame of the packet's dominant axis `kz`, ray `i` is at depth `z` (along `kz`, from its
+/// origin) at `o_i + z (Sx_i, Sy_i, 1)`, with the slopes `Sx = d[kx] / d[kz]`,
+/// `Sy = d[ky] / d[kz]` of the watertight test's shear; at the same depth it is within
+/// `|o_i − o_0|∞ + z max(|Sx_i − Sx_0|, |Sy_i − Sy_0|)` of the first ray on every axis. Up to the
+/// far side of the tree's box along `kz`, `z ≤ |c[kz] − o_0[kz]| + h[kz]` (its centre `c` and
+/// half extent `h`). The packet is traced as one when that bound is at most
+/// `MAX_BEAM_WIDTH · L` for every ray.
 pub(super) struct BeamLimit {
-    center: glam::Vec3,
-    half_diagonal: f32,
+    center: [f32; 3],
+    half_extent: [f32; 3],
     width: f32,
 }
 
@@ -79,11 +82,18 @@ impl BeamLimit {
     /// The limit for a tree of box `bounds` whose triangle packets are `packet_extent` across.
     pub fn new(bounds: &Aabb, packet_extent: f32) -> Self {
         Self {
-            center: bounds.center(),
-            half_diagonal: bounds.extent().length() / 2.0,
+            center: bounds.center().to_array(),
+            half_extent: (bounds.extent() / 2.0).to_array(),
             width: MAX_BEAM_WIDTH * packet_extent,
         }
     }
+}
+
+/// What [`is_coherent`] found of a coherent packet: the dominant axis and the other two
+/// (`[kx, ky, kz]`, as [`PreparedRay`] chooses them), and the slopes `Sx`, `Sy` of each ray.
+struct Coherent {
+    k: [usize; 3],
+    slopes: [__m256; 2],
 }
 
 /// Whether eight rays (as columns) may be traced as one packet: all valid ([`Ray::is_valid`]),
@@ -93,7 +103,7 @@ impl BeamLimit {
 /// only the speed; the answers are the single rays' either way.)
 #[target_feature(enable = "avx2")]
 #[inline]
-unsafe fn is_coherent(rays: &RayColumns, limit: &BeamLimit) -> bool {
+unsafe fn is_coherent(rays: &RayColumns, limit: &BeamLimit) -> Option<Coherent> {
     let RayColumns {
         origin: o,
         direction: d,
@@ -123,37 +133,48 @@ unsafe fn is_coherent(rays: &RayColumns, limit: &BeamLimit) -> bool {
         ),
     );
     // `PreparedRay`'s choice of `kz`: x if it is the largest (ties to x), else y if at least z.
-    let on_x = and(ge(ax, ay), ge(ax, az));
-    let on_y = _mm256_andnot_ps(on_x, ge(ay, az));
-    let shared = |mask: __m256| matches!(_mm256_movemask_ps(mask), 0 | 0xff);
+    let on_x = _mm256_movemask_ps(and(ge(ax, ay), ge(ax, az)));
+    let on_y = _mm256_movemask_ps(_mm256_andnot_ps(and(ge(ax, ay), ge(ax, az)), ge(ay, az)));
+    let shared = |mask: i32| matches!(mask, 0 | 0xff);
     if _mm256_movemask_ps(valid) != 0xff
-        || !(shared(d[0]) && shared(d[1]) && shared(d[2]) && shared(on_x) && shared(on_y))
+        || !(shared(_mm256_movemask_ps(d[0]))
+            && shared(_mm256_movemask_ps(d[1]))
+            && shared(_mm256_movemask_ps(d[2]))
+            && shared(on_x)
+            && shared(on_y))
     {
-        return false;
+        return None;
     }
-    // Lane 0's value in every lane.
+    let kz = if on_x != 0 {
+        0
+    } else if on_y != 0 {
+        1
+    } else {
+        2
+    };
+    let (kx, ky) = ((kz + 1) % 3, (kz + 2) % 3);
+    let slopes = [_mm256_div_ps(d[kx], d[kz]), _mm256_div_ps(d[ky], d[kz])];
+    // Lane 0's value in every lane, and how far each lane's is from it.
     let first = |x: __m256| _mm256_permutevar8x32_ps(x, _mm256_setzero_si256());
-    let length = _mm256_sqrt_ps(_mm256_add_ps(
-        _mm256_add_ps(_mm256_mul_ps(d[0], d[0]), _mm256_mul_ps(d[1], d[1])),
-        _mm256_mul_ps(d[2], d[2]),
-    ));
-    let unit = d.map(|c| _mm256_div_ps(c, length));
     let apart = |x: __m256| abs(_mm256_sub_ps(x, first(x)));
-    let largest_apart =
-        |v: [__m256; 3]| _mm256_max_ps(_mm256_max_ps(apart(v[0]), apart(v[1])), apart(v[2]));
-    let origin0 = glam::Vec3::from_array(o.map(|c| _mm256_cvtss_f32(c)));
-    let reach = (limit.center - origin0).length() + limit.half_diagonal;
+    let reach = (limit.center[kz] - _mm256_cvtss_f32(o[kz])).abs() + limit.half_extent[kz];
     let width = _mm256_add_ps(
-        largest_apart(o),
-        _mm256_mul_ps(_mm256_set1_ps(reach), largest_apart(unit)),
+        _mm256_max_ps(_mm256_max_ps(apart(o[0]), apart(o[1])), apart(o[2])),
+        _mm256_mul_ps(
+            _mm256_set1_ps(reach),
+            _mm256_max_ps(apart(slopes[0]), apart(slopes[1])),
+        ),
     );
     let narrow = _mm256_cmp_ps::<_CMP_LE_OQ>(width, _mm256_set1_ps(limit.width));
-    _mm256_movemask_ps(narrow) == 0xff
+    (_mm256_movemask_ps(narrow) == 0xff).then_some(Coherent {
+        k: [kx, ky, kz],
+        slopes,
+    })
 }
 
 /// The constants of a packet's eight rays, one lane each: what the box and triangle tests read.
 /// Each lane holds exactly what [`PreparedRay`] and [`BoxRay`] hold for its ray.
-struct PacketRays<'r> {
+pub(super) struct PacketRays<'r> {
     rays: &'r [Ray; PACKET_RAYS],
     scene_size: f32,
     origin: [__m256; 3],
@@ -171,7 +192,7 @@ struct PacketRays<'r> {
 }
 
 impl<'r> PacketRays<'r> {
-    /// The constants of `rays` (coherent: [`is_coherent`], with their `columns` and the root
+    /// The constants of `rays` (coherent as `coherent` says, with their `columns` and the root
     /// test `root` of a tree of [`PreparedRay::scene_size`] `scene_size`), computed as
     /// [`PreparedRay::new`] computes them, lane by lane: the reciprocals and margins are the
     /// root test's, the shear the same correctly rounded quotients.
@@ -181,12 +202,13 @@ impl<'r> PacketRays<'r> {
         rays: &'r [Ray; PACKET_RAYS],
         columns: &RayColumns,
         root: &RootTest,
+        coherent: &Coherent,
         scene_size: f32,
     ) -> Self {
-        let lane0 = PreparedRay::new(&rays[0]);
-        let k = [lane0.kx, lane0.ky, lane0.kz];
-        let [kx, ky, kz] = k;
+        let [kx, ky, kz] = coherent.k;
         let (o, d) = (columns.origin, columns.direction);
+        // The shared direction signs (the first lane's), as `is_sign_negative` reads them.
+        let negative = d.map(|c| _mm256_movemask_ps(c) & 1 == 1);
         Self {
             rays,
             scene_size,
@@ -194,16 +216,16 @@ impl<'r> PacketRays<'r> {
             inv_direction: root.inverse,
             origin_k: [o[kx], o[ky], o[kz]],
             shear: [
-                _mm256_div_ps(d[kx], d[kz]),
-                _mm256_div_ps(d[ky], d[kz]),
+                coherent.slopes[0],
+                coherent.slopes[1],
                 _mm256_div_ps(_mm256_set1_ps(1.0), d[kz]),
             ],
             tmin: columns.tmin,
             box_tmin: _mm256_sub_ps(columns.tmin, root.box_margin),
             box_margin: root.box_margin,
             slab_margin: root.slab_margin,
-            near_side: lane0.negative.map(usize::from),
-            k,
+            near_side: negative.map(usize::from),
+            k: coherent.k,
         }
     }
 
@@ -424,7 +446,22 @@ struct Postponed {
 
 /// What a packet's traversal looks for, and keeps, ray by ray: the closest hit
 /// ([`ClosestHits`]) or a blocking triangle ([`Occluders`]).
-trait PacketQuery {
+pub(super) trait PacketQuery {
+    /// What the query answers for a ray.
+    type Answer;
+
+    /// The query's state for a packet of rays (`columns`) before any node is visited.
+    ///
+    /// # Safety
+    /// The CPU has AVX2.
+    unsafe fn start(columns: &RayColumns, packet: &PacketRays) -> Self;
+
+    /// The answer for ray `lane`, once the traversal is over.
+    ///
+    /// # Safety
+    /// The CPU has AVX2.
+    unsafe fn answer(&self, lane: usize) -> Option<Self::Answer>;
+
     /// The end of each ray's interval for box tests: `tmax` (shrunk to the closest hit so far)
     /// plus its box margin.
     fn box_tmax(&self) -> __m256;
@@ -459,7 +496,7 @@ trait PacketQuery {
 
 /// The closest hit so far of each ray of a packet. `tmax` is each ray's interval end: its
 /// closest hit's `t` once it has one (bit set in `found`), its own `tmax` before.
-struct ClosestHits {
+pub(super) struct ClosestHits {
     tmax: __m256,
     /// `tmax + box_margin`: the end of each ray's interval for box tests.
     box_tmax: __m256,
@@ -578,6 +615,22 @@ impl ClosestHits {
 }
 
 impl PacketQuery for ClosestHits {
+    type Answer = Hit;
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn start(columns: &RayColumns, packet: &PacketRays) -> Self {
+        // SAFETY: AVX2 is enabled.
+        unsafe { Self::new(columns, packet) }
+    }
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn answer(&self, lane: usize) -> Option<Hit> {
+        // SAFETY: AVX2 is enabled.
+        unsafe { self.hit(lane) }
+    }
+
     #[inline(always)]
     fn box_tmax(&self) -> __m256 {
         self.box_tmax
@@ -637,8 +690,9 @@ impl PacketQuery for ClosestHits {
         packet: &PacketRays,
     ) {
         // SAFETY: AVX2 is enabled.
-        let ray = packet.alone(lane, unsafe { lane_of(self.tmax, lane) });
-        let mut traversal = Traversal::in_subtree(ray, BoxRay::new(&ray), node);
+        let tmax = unsafe { lane_of(self.tmax, lane) };
+        let mut traversal =
+            Traversal::in_subtree(&packet.rays[lane], tmax, packet.scene_size, node);
         let mut found = None;
         while let Step::Continue = traversal.step::<8, NoCount, AvxBoxes, true, false>(
             layout,
@@ -656,7 +710,7 @@ impl PacketQuery for ClosestHits {
 }
 
 /// The blocking triangle found so far for each ray of a packet (bit set in `blocked`).
-struct Occluders {
+pub(super) struct Occluders {
     tmax: __m256,
     box_tmax: __m256,
     blocked: u32,
@@ -682,6 +736,20 @@ impl Occluders {
 }
 
 impl PacketQuery for Occluders {
+    type Answer = u32;
+
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    unsafe fn start(columns: &RayColumns, packet: &PacketRays) -> Self {
+        // SAFETY: AVX2 is enabled.
+        unsafe { Self::new(columns, packet) }
+    }
+
+    #[inline]
+    unsafe fn answer(&self, lane: usize) -> Option<u32> {
+        (self.blocked >> lane & 1 == 1).then_some(self.occluder[lane])
+    }
+
     #[inline(always)]
     fn box_tmax(&self) -> __m256 {
         self.box_tmax
@@ -737,8 +805,9 @@ impl PacketQuery for Occluders {
         packet: &PacketRays,
     ) {
         // SAFETY: AVX2 is enabled.
-        let ray = packet.alone(lane, unsafe { lane_of(self.tmax, lane) });
-        let mut traversal = Traversal::in_subtree(ray, BoxRay::new(&ray), node);
+        let tmax = unsafe { lane_of(self.tmax, lane) };
+        let mut traversal =
+            Traversal::in_subtree(&packet.rays[lane], tmax, packet.scene_size, node);
         let mut found = None;
         while let Step::Continue = traversal.step::<8, NoCount, AvxBoxes, true, false>(
             layout,
@@ -755,124 +824,58 @@ impl PacketQuery for Occluders {
 }
 
 impl WideLayout<8> {
-    /// Closest hits of `rays` into `hits` (same length): each run of eight consecutive rays
-    /// that [`is_coherent`] traced as a packet, the other rays by the interleaved single-ray
-    /// batch. The answers are the single rays' either way. The caller checks that the CPU has
-    /// AVX2.
-    #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn closest_hits_in_packets(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        // SAFETY (this block): AVX2, and so AVX, is enabled.
-        unsafe {
-            self.in_packets(
-                rays,
-                hits,
-                |root, active, columns, packet, out| {
-                    let mut best = ClosestHits::new(columns, packet);
-                    self.trace_packet(root, active, packet, &mut best);
-                    for (lane, hit) in out.iter_mut().enumerate() {
-                        *hit = best.hit(lane);
-                    }
-                },
-                |rays, hits| self.closest_hits_avx(rays, hits),
-            )
-        }
+    /// The beam limit of this layout's packets ([`BeamLimit`]), if it has a tree.
+    pub(super) fn beam_limit(&self) -> Option<BeamLimit> {
+        self.root
+            .map(|(_, bounds, _)| BeamLimit::new(&bounds, self.packet_extent))
     }
 
-    /// Blocking triangles of `rays` into `occluders` (same length), as
-    /// [`WideLayout::closest_hits_in_packets`]: coherent runs of eight as packets, the others
-    /// by the single-ray batch, children nearest first when `NEAREST_FIRST` (packets always).
-    /// Whether a ray is blocked is the single ray's answer; which triangle blocks it may differ.
-    /// The caller checks that the CPU has AVX2.
-    #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn occluders_in_packets<const NEAREST_FIRST: bool>(
-        &self,
-        rays: &[Ray],
-        occluders: &mut [Option<u32>],
-    ) {
-        // SAFETY (this block): AVX2, and so AVX, is enabled.
-        unsafe {
-            self.in_packets(
-                rays,
-                occluders,
-                |root, active, columns, packet, out| {
-                    let mut found = Occluders::new(columns, packet);
-                    self.trace_packet(root, active, packet, &mut found);
-                    for (lane, o) in out.iter_mut().enumerate() {
-                        *o = (found.blocked >> lane & 1 == 1).then_some(found.occluder[lane]);
-                    }
-                },
-                |rays, occluders| self.any_hits_avx::<NEAREST_FIRST>(rays, occluders),
-            )
-        }
-    }
-
-    /// The batch driver of both queries: each run of eight rays is tested against the root box
-    /// at once (all missing it, or invalid: misses); a coherent run goes to `packet(root,
-    /// rays meeting the root, columns, constants, its eight answers)`; the other rays, gathered,
-    /// to the single-ray batch `alone(rays, answers)`.
+    /// The block filter of the batches with packets ([`WideLayout::trace_batch`]): the eight
+    /// rays against the root box at once; if they are coherent ([`is_coherent`] within
+    /// `limit`, [`WideLayout::beam_limit`]), traced as a
+    /// packet for query `Q`, their answers written to `answers` (eight), and none handed on;
+    /// otherwise those that meet the root box handed on, to be traced alone. The caller checks
+    /// that the CPU has AVX2.
     #[target_feature(enable = "avx2")]
     #[inline]
-    unsafe fn in_packets<A: Copy>(
+    pub(super) unsafe fn packet_block<Q: PacketQuery>(
         &self,
-        rays: &[Ray],
-        answers: &mut [Option<A>],
-        mut packet: impl FnMut(u32, u32, &RayColumns, &PacketRays, &mut [Option<A>]),
-        alone: impl Fn(&[Ray], &mut [Option<A>]),
-    ) {
-        assert_eq!(rays.len(), answers.len());
+        rays: &[Ray; PACKET_RAYS],
+        answers: &mut [Option<Q::Answer>],
+        limit: &BeamLimit,
+    ) -> u32 {
         let Some((root, bounds, scene_size)) = self.root else {
-            answers.fill(None);
-            return;
+            return 0;
         };
-        let limit = BeamLimit::new(&bounds, self.packet_extent);
-        let mut rest = Vec::new();
-        for (k, (eight, out)) in rays
-            .chunks(PACKET_RAYS)
-            .zip(answers.chunks_mut(PACKET_RAYS))
-            .enumerate()
-        {
-            let Ok(eight) = <&[Ray; PACKET_RAYS]>::try_from(eight) else {
-                rest.extend(k * PACKET_RAYS..rays.len());
-                continue;
+        // SAFETY (this block): AVX2 is enabled.
+        unsafe {
+            let columns = RayColumns::of(rays);
+            let test = RootTest::of(&columns, &bounds, scene_size);
+            if test.met == 0 {
+                return 0;
+            }
+            let Some(coherent) = is_coherent(&columns, limit) else {
+                return test.met;
             };
-            // SAFETY (this block): AVX2 is enabled.
-            unsafe {
-                let columns = RayColumns::of(eight);
-                let test = RootTest::of(&columns, &bounds, scene_size);
-                if test.met == 0 {
-                    // Each ray misses the tree's box, or is invalid: a miss either way.
-                    out.fill(None);
-                } else if is_coherent(&columns, &limit) {
-                    let constants = PacketRays::new(eight, &columns, &test, scene_size);
-                    packet(root, test.met, &columns, &constants, out);
-                } else {
-                    rest.extend(k * PACKET_RAYS..(k + 1) * PACKET_RAYS);
-                }
+            let packet = PacketRays::new(rays, &columns, &test, &coherent, scene_size);
+            let mut query = Q::start(&columns, &packet);
+            self.trace_packet(root, test.met, &packet, &mut query);
+            for (lane, answer) in answers.iter_mut().enumerate() {
+                *answer = query.answer(lane);
             }
         }
-        if rest.len() == rays.len() {
-            return alone(rays, answers);
-        }
-        if rest.is_empty() {
-            return;
-        }
-        let gathered: Vec<Ray> = rest.iter().map(|&i| rays[i]).collect();
-        let mut found = vec![None; gathered.len()];
-        alone(&gathered, &mut found);
-        for (&i, answer) in rest.iter().zip(found) {
-            answers[i] = answer;
-        }
+        0
     }
 
     /// The packet traversal (module notes) of the rays `active` from the root reference `root`.
     #[target_feature(enable = "avx2")]
     #[inline]
-    unsafe fn trace_packet(
+    unsafe fn trace_packet<Q: PacketQuery>(
         &self,
         root: u32,
         active: u32,
         packet: &PacketRays,
-        query: &mut impl PacketQuery,
+        query: &mut Q,
     ) {
         let mut stack: TraversalStack<Postponed, 64> = TraversalStack::new();
         let (mut current, mut lanes) = (root, active);
@@ -982,6 +985,7 @@ mod tests {
     /// Every run of eight consecutive rays, and the whole batch, answers exactly as each ray
     /// alone: closest hits, and whether each is blocked. Returns how many runs were packets.
     fn check_packets(layout: &WideLayout<8>, rays: &[Ray]) -> Result<usize, TestCaseError> {
+        prop_assert!(layout.traces_ray_packets());
         let limit = layout
             .root
             .map(|(_, b, _)| BeamLimit::new(&b, layout.packet_extent));
@@ -999,35 +1003,38 @@ mod tests {
             .collect();
         let mut packets = 0;
         for (k, eight) in rays.chunks_exact(PACKET_RAYS).enumerate() {
-            let eight: &[Ray; PACKET_RAYS] = eight.try_into().unwrap();
             let span = k * PACKET_RAYS..(k + 1) * PACKET_RAYS;
-            // SAFETY (this block): the caller checked AVX2.
-            unsafe {
-                if limit
-                    .as_ref()
-                    .is_some_and(|limit| is_coherent(&RayColumns::of(eight), limit))
-                {
-                    packets += 1;
-                }
-                let mut hits = [None; PACKET_RAYS];
-                layout.closest_hits_in_packets(eight, &mut hits);
-                prop_assert_eq!(&hits[..], &closest[span.clone()], "{:?}", eight);
-                let mut occluders = [None; PACKET_RAYS];
-                layout.occluders_in_packets::<true>(eight, &mut occluders);
-                let found: Vec<bool> = occluders.iter().map(Option::is_some).collect();
-                prop_assert_eq!(&found[..], &blocked[span], "{:?}", eight);
+            let columns_of = |eight: &[Ray]| {
+                // SAFETY: the caller checked AVX2.
+                unsafe { RayColumns::of(eight.try_into().unwrap()) }
+            };
+            if limit
+                .as_ref()
+                // SAFETY: as above.
+                .is_some_and(|limit| unsafe { is_coherent(&columns_of(eight), limit).is_some() })
+            {
+                packets += 1;
             }
+            let mut hits = [None; PACKET_RAYS];
+            layout.closest_hits(eight, &mut hits);
+            prop_assert_eq!(&hits[..], &closest[span.clone()], "{:?}", eight);
+            let mut occluders = [None; PACKET_RAYS];
+            layout.occluders(eight, &mut occluders);
+            let found: Vec<bool> = occluders.iter().map(Option::is_some).collect();
+            prop_assert_eq!(&found[..], &blocked[span], "{:?}", eight);
         }
-        let mut hits = vec![None; rays.len()];
-        let mut occluders = vec![None; rays.len()];
-        // SAFETY (this block): as above.
-        unsafe {
-            layout.closest_hits_in_packets(rays, &mut hits);
-            layout.occluders_in_packets::<false>(rays, &mut occluders);
+        // The whole batch, interleaved and ray by ray (as large and small layouts trace it).
+        for interleave in [false, true] {
+            let mut layout = layout.clone();
+            layout.interleave = interleave;
+            let mut hits = vec![None; rays.len()];
+            let mut occluders = vec![None; rays.len()];
+            layout.closest_hits(rays, &mut hits);
+            layout.occluders(rays, &mut occluders);
+            prop_assert_eq!(&hits, &closest, "interleaved: {}", interleave);
+            let found: Vec<bool> = occluders.iter().map(Option::is_some).collect();
+            prop_assert_eq!(&found, &blocked, "interleaved: {}", interleave);
         }
-        prop_assert_eq!(hits, closest);
-        let found: Vec<bool> = occluders.iter().map(Option::is_some).collect();
-        prop_assert_eq!(found, blocked);
         Ok(packets)
     }
 

@@ -33,17 +33,16 @@ impl RayCursor {
         }
     }
 
-    /// The index of the next ray of `rays` that may meet the root box `bounds` (of
-    /// [`PreparedRay::scene_size`] `scene_size`), or `None` when none is left. Each block of
-    /// eight rays is filtered by `filter` (see [`root_candidates_avx`]); the last, shorter block
-    /// is handed out whole.
+    /// The index of the next ray of `rays` to trace, or `None` when none is left. Each block of
+    /// eight rays goes to `filter(first, rays)`, which returns the rays of the block to hand out
+    /// (those that may meet the root box: [`root_candidates_avx`]; a batch that traces the block
+    /// as a packet answers it there and hands out none); the last, shorter block is handed out
+    /// whole.
     #[inline(always)]
     pub fn next(
         &mut self,
         rays: &[Ray],
-        bounds: &Aabb,
-        scene_size: f32,
-        filter: impl Fn(&[Ray; 8], &Aabb, f32) -> u32,
+        mut filter: impl FnMut(usize, &[Ray; 8]) -> u32,
     ) -> Option<usize> {
         while self.pending == 0 {
             self.block = self.next_block;
@@ -52,7 +51,7 @@ impl RayCursor {
             }
             self.next_block = self.block + 8;
             self.pending = match rays.get(self.block..self.next_block) {
-                Some(eight) => filter(eight.try_into().expect("eight rays"), bounds, scene_size),
+                Some(eight) => filter(self.block, eight.try_into().expect("eight rays")),
                 None => (1 << (rays.len() - self.block)) - 1,
             };
         }
@@ -406,14 +405,17 @@ mod tests {
     #[test]
     fn the_cursor_hands_out_every_candidate_once_in_order() {
         let rays = vec![Ray::new(Vec3::ZERO, Vec3::X); 21];
-        let bounds = Aabb::new(Vec3::ZERO, Vec3::ONE);
         // Keep rays 1 and 6 of each block of eight; the last block (5 rays) is handed out whole.
-        let filter = |_: &[Ray; 8], _: &Aabb, _: f32| 0b0100_0010;
+        let mut firsts = Vec::new();
+        let mut filter = |first: usize, _: &[Ray; 8]| {
+            firsts.push(first);
+            0b0100_0010
+        };
         let mut cursor = RayCursor::new();
-        let got: Vec<usize> =
-            std::iter::from_fn(|| cursor.next(&rays, &bounds, 1.0, filter)).collect();
+        let got: Vec<usize> = std::iter::from_fn(|| cursor.next(&rays, &mut filter)).collect();
         assert_eq!(got, [1, 6, 9, 14, 16, 17, 18, 19, 20]);
+        assert_eq!(firsts, [0, 8]);
         let mut cursor = RayCursor::new();
-        assert_eq!(cursor.next(&[], &bounds, 1.0, filter), None);
+        assert_eq!(cursor.next(&[], |_, _| 0xff), None);
     }
 }

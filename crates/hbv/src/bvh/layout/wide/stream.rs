@@ -69,17 +69,35 @@ impl<const W: usize> WideLayout<W> {
     /// layout that does not interleave, each ray in turn; children nearest first (closest hit,
     /// and any hit from outside the tree) or in lane order. `visit` is
     /// [`closest_leaf_visit!`]'s or [`any_leaf_visit!`]'s closure, written at the caller.
+    ///
+    /// Rays come in blocks of eight, each first given to `block(rays, answers)` with its eight
+    /// answers (still misses): it returns the rays to trace (those that may meet the tree:
+    /// [`WideLayout::root_block`]), and may answer the others itself (a packet of coherent rays,
+    /// `ray_packet.rs`). The last, shorter block is traced whole.
     #[inline(always)]
     pub(super) fn trace_batch<K: BoxKernel<W>, A, const NEAREST_FIRST: bool>(
         &self,
         rays: &[Ray],
         answers: &mut [Option<A>],
         visit: impl Fn(&Self, usize, usize, &mut PreparedRay, &mut Option<A>) -> bool,
+        block: impl FnMut(&[Ray; 8], &mut [Option<A>]) -> u32,
     ) {
         if self.interleave {
-            self.run_stream::<K, _, NEAREST_FIRST>(rays, answers, visit);
+            self.run_stream::<K, _, NEAREST_FIRST>(rays, answers, visit, block);
         } else {
-            self.run_in_turn::<K, _, NEAREST_FIRST>(rays, answers, visit);
+            self.run_in_turn::<K, _, NEAREST_FIRST>(rays, answers, visit, block);
+        }
+    }
+
+    /// The block filter of batches without packets: the rays of the block that may meet the
+    /// root box ([`BoxKernel::root_candidates`]).
+    #[inline(always)]
+    pub(super) fn root_block<K: BoxKernel<W>, A>(
+        &self,
+    ) -> impl FnMut(&[Ray; 8], &mut [Option<A>]) -> u32 + '_ {
+        move |eight, _| match &self.root {
+            Some((_, bounds, scene_size)) => K::root_candidates(eight, bounds, *scene_size),
+            None => 0,
         }
     }
 
@@ -92,14 +110,17 @@ impl<const W: usize> WideLayout<W> {
         rays: &[Ray],
         answers: &mut [Option<A>],
         visit_leaf: impl Fn(&Self, usize, usize, &mut PreparedRay, &mut Option<A>) -> bool,
+        mut block: impl FnMut(&[Ray; 8], &mut [Option<A>]) -> u32,
     ) {
         assert_eq!(rays.len(), answers.len());
         answers.iter_mut().for_each(|a| *a = None);
-        let Some((_, bounds, scene_size)) = &self.root else {
+        if self.root.is_none() {
             return;
-        };
+        }
         let mut cursor = RayCursor::new();
-        while let Some(i) = cursor.next(rays, bounds, *scene_size, K::root_candidates) {
+        while let Some(i) = cursor.next(rays, |first, eight| {
+            block(eight, &mut answers[first..first + 8])
+        }) {
             let ray = &rays[i];
             if !ray.is_valid() {
                 continue;
@@ -134,6 +155,7 @@ impl<const W: usize> WideLayout<W> {
         rays: &[Ray],
         answers: &mut [Option<A>],
         visit_leaf: impl Fn(&Self, usize, usize, &mut PreparedRay, &mut Option<A>) -> bool,
+        mut block: impl FnMut(&[Ray; 8], &mut [Option<A>]) -> u32,
     ) {
         assert_eq!(rays.len(), answers.len());
         answers.iter_mut().for_each(|a| *a = None);
@@ -151,7 +173,14 @@ impl<const W: usize> WideLayout<W> {
             // branches per ray on the teapot).
             let (mut nodes, mut leaves) = (0u32, 0u32);
             for i in 0..STREAMS {
-                if self.start_next::<K>(rays, &mut cursor, &mut traversals[i], &mut index[i]) {
+                if self.start_next::<K, A>(
+                    rays,
+                    answers,
+                    &mut block,
+                    &mut cursor,
+                    &mut traversals[i],
+                    &mut index[i],
+                ) {
                     place(i, &traversals[i], &mut nodes, &mut leaves);
                 }
             }
@@ -162,8 +191,10 @@ impl<const W: usize> WideLayout<W> {
                         .node_step::<W, NoCount, K, NEAREST_FIRST, true>(self, &mut NoCount);
                     if let Step::Done = step {
                         answers[index[i]] = answer[i].take();
-                        if !self.start_next::<K>(
+                        if !self.start_next::<K, A>(
                             rays,
+                            answers,
+                            &mut block,
                             &mut cursor,
                             &mut traversals[i],
                             &mut index[i],
@@ -180,8 +211,10 @@ impl<const W: usize> WideLayout<W> {
                     });
                     if let Step::Done = step {
                         answers[index[i]] = found.take();
-                        if !self.start_next::<K>(
+                        if !self.start_next::<K, A>(
                             rays,
+                            answers,
+                            &mut block,
                             &mut cursor,
                             &mut traversals[i],
                             &mut index[i],
@@ -246,23 +279,24 @@ fn place(i: usize, traversal: &Traversal, nodes: &mut u32, leaves: &mut u32) {
 
 impl<const W: usize> WideLayout<W> {
     /// Sets a slot's `traversal` up for the next ray that can meet the tree, and its `index`;
-    /// the rays skipped (invalid, or missing the root's box: left out by the kernel's
-    /// [`BoxKernel::root_candidates`], or by [`Traversal::restart`] when that filter is not
-    /// exact) keep their miss. `false` when no ray is left. (A function rather than a closure
-    /// so that it is inlined into the kernel compiled with AVX: left out of line, the setup of
-    /// each ray took 300 instructions.)
+    /// the rays skipped (invalid, or missing the root's box: left out by the block filter
+    /// `block`, see [`WideLayout::trace_batch`], or by [`Traversal::restart`] when that filter
+    /// is not exact) keep their miss, or the answer the block filter gave them. `false` when no
+    /// ray is left. (A function rather than a closure so that it is inlined into the kernel
+    /// compiled with AVX: left out of line, the setup of each ray took 300 instructions.)
     #[inline(always)]
-    fn start_next<K: BoxKernel<W>>(
+    fn start_next<K: BoxKernel<W>, A>(
         &self,
         rays: &[Ray],
+        answers: &mut [Option<A>],
+        block: &mut impl FnMut(&[Ray; 8], &mut [Option<A>]) -> u32,
         cursor: &mut RayCursor,
         traversal: &mut Traversal,
         index: &mut usize,
     ) -> bool {
-        let Some((_, bounds, scene_size)) = &self.root else {
-            return false;
-        };
-        while let Some(i) = cursor.next(rays, bounds, *scene_size, K::root_candidates) {
+        while let Some(i) = cursor.next(rays, |first, eight| {
+            block(eight, &mut answers[first..first + 8])
+        }) {
             let ray = &rays[i];
             if !ray.is_valid() {
                 continue;

@@ -74,13 +74,15 @@ impl Traversal {
         Some(Self::new(ray, box_ray, root))
     }
 
-    /// The traversal of the subtree at `node` (a node or a leaf reference) by `ray`, prepared
-    /// for the tree ([`PreparedRay::bound_errors_within`]) and known to meet `node`'s box: a ray
-    /// of a packet that goes on alone from there (`ray_packet.rs`), its `tmax` its closest hit
-    /// so far.
+    /// The traversal of the subtree at `node` (a node or a leaf reference) by `ray` (valid),
+    /// over `[ray.tmin, tmax]`, in a tree of [`PreparedRay::scene_size`] `scene_size`: a ray of a
+    /// packet that goes on alone from a node its packet reached (`ray_packet.rs`), `tmax` its
+    /// closest hit so far.
     #[inline(always)]
-    pub fn in_subtree(ray: PreparedRay, box_ray: BoxRay, node: u32) -> Self {
-        Self::new(ray, box_ray, node)
+    pub fn in_subtree(ray: &Ray, tmax: f32, scene_size: f32, node: u32) -> Self {
+        let (mut prepared, box_ray) = Self::prepare(ray, scene_size);
+        prepared.tmax = tmax;
+        Self::new(prepared, box_ray, node)
     }
 
     #[inline(always)]
