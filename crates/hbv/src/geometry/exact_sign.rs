@@ -25,8 +25,8 @@ struct ExactSum {
 
 impl ExactSum {
     /// Each term added lengthens the expansion by at most one component; the largest sum here
-    /// has 36 terms (`orientation_sign`).
-    const CAPACITY: usize = 40;
+    /// has 48 terms (`plane_numerator`).
+    const CAPACITY: usize = 50;
 
     fn new() -> Self {
         Self {
@@ -57,7 +57,7 @@ impl ExactSum {
             kept += 1;
         }
         self.len = kept;
-        assert!(self.len < Self::CAPACITY, "ExactSum holds at most 39 terms");
+        assert!(self.len < Self::CAPACITY, "ExactSum holds at most 49 terms");
     }
 
     /// Adds the product `a b` exactly (as the rounded product and its rounding error).
@@ -65,6 +65,17 @@ impl ExactSum {
         let (product, error) = two_product(a, b);
         self.add(error);
         self.add(product);
+    }
+
+    /// The exact sum rounded to an f64 (its components added smallest first: each is below
+    /// half an ulp of the next, so the result is within a few ulps of the exact sum, and 0 only
+    /// if that is 0), or `None` if a term was not finite.
+    fn value(&self) -> Option<f64> {
+        self.finite.then(|| {
+            self.parts[..self.len]
+                .iter()
+                .fold(0.0, |sum, &part| sum + part)
+        })
     }
 
     /// The sign of the exact sum (the sign of its largest component), or `None` if a term was
@@ -154,6 +165,96 @@ fn add_determinant(sum: &mut ExactSum, sign: f64, a: Vec3, b: Vec3, c: Vec3) {
     }
 }
 
+/// The numerator `Ng · (p0 − o)` of the parameter `t = Ng · (p0 − o) / Ng · d` at which the ray
+/// `o + t d` meets the plane of the triangle `p0, p1, p2` (`Ng = (p1 − p0) × (p2 − p0)`), to
+/// within `2^-26` of itself: in f64 where that is exact, in double-f64 where that is close
+/// enough, else summed exactly and rounded once. It has the exact sign and is 0 exactly when
+/// the exact value is. `None` if a coordinate is not finite.
+///
+/// With `Ng · w = det[p1 − p0, p2 − p0, w]` and linearity in each row (no difference is formed):
+/// `Ng · (p0 − o) = det[p1, p2, p0] − det[p1, p2, o] + det[p0, p2, o] + det[p1, p0, o]`, 48
+/// terms: thousands of operations, for the hits where the f64 value is too poorly
+/// conditioned to give `t` to an f32 ulp (`Triangle::plane_distance`).
+pub(crate) fn plane_numerator(p: [Vec3; 3], o: Vec3) -> Option<f64> {
+    let [p0, p1, p2] = p;
+    // `det[p0 − o, p1 − o, p2 − o]`, the same value, first in f64 where that is exact (an
+    // origin exactly on an axis-aligned face: tens of operations).
+    let exact = || {
+        let w = [p0, p1, p2].map(|q| difference_if_exact(q, o));
+        determinant_if_exact_in_f64(w[0]?, w[1]?, w[2]?)
+    };
+    if let Some(value) = exact() {
+        return Some(value);
+    }
+    if let Some(value) = plane_numerator_in_double_f64(p, o) {
+        return Some(value);
+    }
+    let mut sum = ExactSum::new();
+    add_determinant(&mut sum, 1.0, p1, p2, p0);
+    add_determinant(&mut sum, -1.0, p1, p2, o);
+    add_determinant(&mut sum, 1.0, p0, p2, o);
+    add_determinant(&mut sum, 1.0, p1, p0, o);
+    sum.value()
+}
+
+/// [`plane_numerator`] as `det[p0 − o, p1 − o, p2 − o]` in double-f64 arithmetic (each of its
+/// six products of three exact differences split into a leading f64 and a remainder by
+/// `two_product`, the sums carried by `two_sum`), if that is within `2^-26` of it: its error is
+/// at most about `2^-96` of the terms' magnitudes `P` (the remainders' own sum rounds), and it
+/// is kept where `P` is at most `2^70` times its value. An origin within f32 rounding of a slanted face (`P` about `2^24` times
+/// `|value|`, beyond plain f64's reach for an ulp of `t`) is decided here in a few hundred
+/// operations. `None` (the expansion decides) where a difference is not exact in f64 or the
+/// value is smaller still: zero or within about `2^-70` of the terms.
+fn plane_numerator_in_double_f64(p: [Vec3; 3], o: Vec3) -> Option<f64> {
+    let [a, b, c] = [
+        difference_if_exact(p[0], o)?,
+        difference_if_exact(p[1], o)?,
+        difference_if_exact(p[2], o)?,
+    ];
+    let (mut sum, mut low, mut magnitude) = (0.0, 0.0, 0.0);
+    for (i, j, k, sign) in [
+        (0, 1, 2, 1.0),
+        (1, 2, 0, 1.0),
+        (2, 0, 1, 1.0),
+        (0, 2, 1, -1.0),
+        (1, 0, 2, -1.0),
+        (2, 1, 0, -1.0),
+    ] {
+        // a_i b_j c_k = (h + l) c_k = h c_k + l c_k: h c_k exactly as two f64s, l c_k rounded
+        // (below 2^-105 of the term).
+        let (h, l) = two_product(sign * a[i], b[j]);
+        let (high, error) = two_product(h, c[k]);
+        let (total, carried) = two_sum(sum, high);
+        sum = total;
+        low += carried + error + l * c[k];
+        magnitude += high.abs();
+    }
+    let value = sum + low;
+    (value.abs() * 2f64.powi(70) >= magnitude && magnitude.is_finite()).then_some(value)
+}
+
+/// The denominator `Ng · d` of [`plane_numerator`]'s parameter, summed exactly and rounded
+/// once to f64 (`det[p1, p2, d] − det[p0, p2, d] − det[p1, p0, d]`, 36 terms). `None` if a
+/// coordinate is not finite.
+pub(crate) fn plane_denominator(p: [Vec3; 3], d: Vec3) -> Option<f64> {
+    let [p0, p1, p2] = p;
+    let exact = || {
+        determinant_if_exact_in_f64(
+            difference_if_exact(p1, p0)?,
+            difference_if_exact(p2, p0)?,
+            d.as_dvec3().to_array(),
+        )
+    };
+    if let Some(value) = exact() {
+        return Some(value);
+    }
+    let mut sum = ExactSum::new();
+    add_determinant(&mut sum, 1.0, p1, p2, d);
+    add_determinant(&mut sum, -1.0, p0, p2, d);
+    add_determinant(&mut sum, -1.0, p1, p0, d);
+    sum.value()
+}
+
 /// The exact sign of `det[p − o, q − o, d]` (rows), for f32 points `o`, `p`, `q` and an f32
 /// vector `d`: which side of the plane through `o` spanned by `p − o` and `d` the point `q`
 /// lies on. `None` if a coordinate is not finite.
@@ -183,28 +284,45 @@ fn orientation_sign_by_expansion(o: Vec3, p: Vec3, q: Vec3, d: Vec3) -> Option<i
 /// of few significant bits (integer or grid-aligned meshes, axis-aligned rays), for which all of
 /// it is exact: a few dozen operations instead of the expansion's thousands.
 fn orientation_sign_if_exact_in_f64(o: Vec3, p: Vec3, q: Vec3, d: Vec3) -> Option<i8> {
-    let exact_sum = |a: f64, b: f64| match two_sum(a, b) {
+    let det = determinant_if_exact_in_f64(
+        difference_if_exact(p, o)?,
+        difference_if_exact(q, o)?,
+        d.as_dvec3().to_array(),
+    )?;
+    Some((det > 0.0) as i8 - (det < 0.0) as i8)
+}
+
+/// `p − q` in f64, if no component rounds.
+fn difference_if_exact(p: Vec3, q: Vec3) -> Option<[f64; 3]> {
+    let (p, q) = (p.as_dvec3(), q.as_dvec3());
+    let mut difference = [0.0; 3];
+    for i in 0..3 {
+        difference[i] = exact_sum(p[i], -q[i])?;
+    }
+    Some(difference)
+}
+
+/// `a + b` if it is an f64 without rounding.
+fn exact_sum(a: f64, b: f64) -> Option<f64> {
+    match two_sum(a, b) {
         (sum, 0.0) => Some(sum),
         _ => None,
-    };
+    }
+}
+
+/// `det[a, b, d] = a · (b × d)` evaluated in f64, if no product or sum rounds.
+fn determinant_if_exact_in_f64(a: [f64; 3], b: [f64; 3], d: [f64; 3]) -> Option<f64> {
     let exact_product = |a: f64, b: f64| match two_product(a, b) {
         (product, 0.0) => Some(product),
         _ => None,
     };
-    let (o, p, q, d) = (o.as_dvec3(), p.as_dvec3(), q.as_dvec3(), d.as_dvec3());
-    let mut a = [0.0; 3];
-    let mut b = [0.0; 3];
-    for i in 0..3 {
-        a[i] = exact_sum(p[i], -o[i])?;
-        b[i] = exact_sum(q[i], -o[i])?;
-    }
     let mut det = 0.0;
     for (i, j, k) in [(0, 1, 2), (1, 2, 0), (2, 0, 1)] {
         // (b × d)_i = b_j d_k − b_k d_j, then a_i times it.
         let cross = exact_sum(exact_product(b[j], d[k])?, -exact_product(b[k], d[j])?)?;
         det = exact_sum(det, exact_product(a[i], cross)?)?;
     }
-    Some((det > 0.0) as i8 - (det < 0.0) as i8)
+    Some(det)
 }
 
 /// The exact sign of `(q_i − p_i) d_k − d_i (q_k − p_k)`, for f32 points `p`, `q` and an f32
@@ -244,6 +362,58 @@ mod tests {
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
         z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
         z ^ (z >> 31)
+    }
+
+    /// `plane_numerator` and `plane_denominator` of integer triangles and rays (where i128 is exact): the values
+    /// within a few f64 ulps, exactly 0 for an origin on the plane or a direction along it.
+    #[test]
+    fn plane_parameters_match_integer_arithmetic() {
+        let mut state = 7;
+        let mut coordinate =
+            |bits: u32| (next(&mut state) % (1 << bits)) as i64 - (1 << (bits - 1));
+        for case in 0..2_000 {
+            let mut point = |bits| [coordinate(bits), coordinate(bits), coordinate(bits)];
+            // Coordinates of 20 bits (every product exact in f64) or 23 (the expansions).
+            let bits = if case % 2 == 0 { 20 } else { 23 };
+            let (p0, p1, p2) = (point(bits), point(bits), point(bits));
+            let (e1, e2) = (
+                [0, 1, 2].map(|k| p1[k] - p0[k]),
+                [0, 1, 2].map(|k| p2[k] - p0[k]),
+            );
+            // Every third origin on the plane, every fifth direction along it.
+            let o = if case % 3 == 0 {
+                [0, 1, 2].map(|k| p1[k] + p2[k] - p0[k])
+            } else {
+                point(bits)
+            };
+            let d = if case % 5 == 0 {
+                [0, 1, 2].map(|k| e1[k] - e2[k])
+            } else {
+                point(12)
+            };
+            let w = [0, 1, 2].map(|k| p0[k] - o[k]);
+            let numerator = integer_orientation([0; 3], e1, e2, w);
+            let denominator = integer_orientation([0; 3], e1, e2, d);
+            let p = [vec(p0, 1.0), vec(p1, 1.0), vec(p2, 1.0)];
+            let n = plane_numerator(p, vec(o, 1.0)).unwrap();
+            let dn = plane_denominator(p, vec(d, 1.0)).unwrap();
+            let close = |found: f64, exact: i128| {
+                (found - exact as f64).abs() <= 4.0 * f64::EPSILON * (exact as f64).abs()
+            };
+            // The numerator to 2^-26 (double f64 where that is enough), the denominator to ulps.
+            let near = (n - numerator as f64).abs() <= 2f64.powi(-26) * (numerator as f64).abs();
+            assert!(near, "case {case}: numerator {n} against {numerator}");
+            assert!(
+                close(dn, denominator),
+                "case {case}: denominator {dn} against {denominator}"
+            );
+            assert_eq!(n == 0.0, numerator == 0, "case {case}");
+            assert_eq!(dn == 0.0, denominator == 0, "case {case}");
+        }
+        let infinite = Vec3::new(f32::INFINITY, 0.0, 0.0);
+        let triangle = [Vec3::ZERO, Vec3::X, Vec3::Y];
+        assert_eq!(plane_numerator(triangle, infinite), None);
+        assert_eq!(plane_denominator(triangle, infinite), None);
     }
 
     #[test]

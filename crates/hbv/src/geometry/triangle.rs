@@ -270,7 +270,8 @@ impl Triangle {
     /// from f32, f64 or exact arithmetic depends only on that edge, and the edge functions of
     /// a shared edge are exact negatives in each, so the two triangles of every edge decide it
     /// alike — watertight. An edge function that is exactly zero (the ray passes through the
-    /// edge's line) counts as the `rule` says.
+    /// edge's line) counts as the `rule` says. The hit's `t` is the plane's
+    /// ([`Triangle::plane_distance`]: to an ulp, exactly where f64 is not enough).
     #[cold]
     fn intersect_near_edge(
         &self,
@@ -281,7 +282,7 @@ impl Triangle {
     ) -> Option<TriangleHit> {
         let (kx, ky, kz) = (ray.kx, ray.ky, ray.kz);
         let d = ray.direction.as_dvec3();
-        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        let (sx, sy) = (d[kx] / d[kz], d[ky] / d[kz]);
         let o = ray.origin.as_dvec3();
         let (a, b, c) = (
             self.p0.as_dvec3() - o,
@@ -356,11 +357,10 @@ impl Triangle {
             // slanted triangle was a hit at a `t` made of noise.)
             return None;
         }
-        let mut t = ((u * sz * a[kz] + v * sz * b[kz] + w * sz * c[kz]) / det) as f32;
-        let scale = a.abs().max(b.abs()).max(c.abs()).max_element() * sz.abs();
-        if (t.abs() as f64) <= Self::NEAR_ORIGIN_ULPS as f64 * f32::EPSILON as f64 * scale {
-            t = self.plane_distance(ray);
-        }
+        // The edges are decided; `t` is the plane's, to an ulp (the sheared frame's f64 `t`,
+        // a weighted mean of the vertices' depths, loses to their cancellation what
+        // `plane_distance` keeps).
+        let t = self.plane_distance(ray);
         Self::accept(ray, t, (v / det) as f32, (w / det) as f32)
     }
 }
@@ -480,35 +480,59 @@ impl Triangle {
     pub(crate) const NEAR_ORIGIN_ULPS: f32 = 64.0;
 
     /// The ray parameter where the ray meets the triangle's plane, `t = Ng · (p0 − o) / Ng · d`
-    /// with `Ng = (p1 − p0) × (p2 − p0)`, rounded once to f32, with the exact sign.
+    /// with `Ng = (p1 − p0) × (p2 − p0)`: within an ulp of the exact value, with its exact
+    /// sign, and exactly 0 for an origin on the plane.
     ///
-    /// Used only for hits next to the ray's origin. Woop's sheared-frame `t` rounds the exact
-    /// `t = 0` of an origin on the surface to a tiny value of either sign. Here the numerator
-    /// `Ng · (p0 − o)` is the orientation determinant `det[p0 − o, p1 − o, p2 − o]`, evaluated
-    /// by Shewchuk's adaptive predicate (`robust::orient3d`, "Adaptive Precision Floating-Point
-    /// Arithmetic and Fast Robust Geometric Predicates", 1997): exact in sign, and exactly 0 for
-    /// an origin on the plane, wherever it lies on it (before, the f64 dot product left a
-    /// rounding residue for an origin on a slanted triangle, and its sign could lose the
-    /// triangle the ray starts on). The denominator is an f64 dot product of exact vertex
-    /// differences: its sign is wrong only for a ray within about 10⁻¹⁵ of the plane's
-    /// direction, which the edge tests do not hand here.
+    /// Used where Woop's sheared-frame `t` is not good enough: for hits next to the ray's
+    /// origin (whose sheared `t` rounds the exact `t = 0` of an origin on the surface to a tiny
+    /// value of either sign), and for every hit decided in f64 (`intersect_near_edge`: near
+    /// edges, slivers, huge triangles at a slant), where the sheared frame's f64 `t` was still
+    /// 0.4 % off on a sliver of aspect 10⁷ hit at a grazing angle next to the origin (a new
+    /// user's sweep).
+    ///
+    /// First in f64, from the exact vertex differences, with the error bound of each dot
+    /// product (`7 ε₆₄` times the sum of its terms' magnitudes, the cross product's included:
+    /// each product and sum rounds once, the differences at most once). Where either bound
+    /// exceeds `2^23` times its value (so that `t` might be off by more than `2^-25` of
+    /// itself, a hundredth of an f32 ulp), that one is summed exactly instead
+    /// (`exact_sign::plane_numerator`, `plane_denominator`: Shewchuk's expansions, "Adaptive Precision
+    /// Floating-Point Arithmetic and Fast Robust Geometric Predicates", 1997). That happens
+    /// where the origin is on or within about `10⁻⁶` relative of the plane, or the ray or the
+    /// edges are as close to parallel: the quotient then carries the exact values' signs, and
+    /// a 0 is a 0. (Before, the numerator's sign came from `robust::orient3d`, exact, but its
+    /// value only to within its own error bound.)
     #[inline]
     fn plane_distance(&self, ray: &PreparedRay) -> f32 {
-        let point = |p: Vec3| robust::Coord3D {
-            x: p.x as f64,
-            y: p.y as f64,
-            z: p.z as f64,
-        };
-        let side = robust::orient3d(
-            point(self.p0),
-            point(self.p1),
-            point(self.p2),
-            point(ray.origin),
+        let (p0, p1, p2) = (self.p0.as_dvec3(), self.p1.as_dvec3(), self.p2.as_dvec3());
+        let (o, d) = (ray.origin.as_dvec3(), ray.direction.as_dvec3());
+        let (e1, e2, w) = (p1 - p0, p2 - p0, p0 - o);
+        let normal = e1.cross(e2);
+        // The magnitudes of the cross product's terms, |e1_y e2_z| + |e1_z e2_y|, ...
+        let (a1, a2) = (e1.abs(), e2.abs());
+        let terms = DVec3::new(
+            a1.y * a2.z + a1.z * a2.y,
+            a1.z * a2.x + a1.x * a2.z,
+            a1.x * a2.y + a1.y * a2.x,
         );
-        if side == 0.0 {
+        let (mut numerator, mut denominator) = (normal.dot(w), normal.dot(d));
+        let conditioned = |value: f64, bound: f64| value.abs() * WELL_CONDITIONED >= bound;
+        let points = [self.p0, self.p1, self.p2];
+        if !conditioned(numerator, terms.dot(w.abs())) {
+            match exact_sign::plane_numerator(points, ray.origin) {
+                Some(exact) => numerator = exact,
+                None => return f32::NAN,
+            }
+        }
+        if numerator == 0.0 {
             return 0.0;
         }
-        let quotient = side / self.scaled_normal().dot(ray.direction.as_dvec3());
+        if !conditioned(denominator, terms.dot(d.abs())) {
+            match exact_sign::plane_denominator(points, ray.direction) {
+                Some(exact) => denominator = exact,
+                None => return f32::NAN,
+            }
+        }
+        let quotient = numerator / denominator;
         let t = quotient as f32;
         if t == 0.0 && quotient != 0.0 {
             // Below f32's range: the nearest nonzero f32 of the quotient's sign, since ahead of
@@ -550,6 +574,11 @@ fn edge_error_f64(max_component: f64, px: f64, py: f64, qx: f64, qy: f64) -> f64
 /// The smallest depth numerator `U Az + V Bz + W Cz` whose f32 products are trusted
 /// ([`Triangle::depth_is_coarse`]): 2^-100.
 pub(crate) const DEPTH_FLOOR: f32 = f32::from_bits(27 << 23);
+
+/// How many times its f64 value a dot product's sum of term magnitudes may be for
+/// [`Triangle::plane_distance`] to keep the f64 quotient: `2^23`, so that with the `7 ε₆₄`
+/// rounding of each the quotient is within `2 · 7 · 2^-29 < 2^-25` of itself: with the final rounding, within an f32 ulp.
+const WELL_CONDITIONED: f64 = (1u64 << 23) as f64;
 
 /// `8 ε` of [`edge_error`].
 const EDGE_ERROR: f32 = 8.0 * f32::EPSILON;
