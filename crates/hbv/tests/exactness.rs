@@ -255,6 +255,18 @@ mod near_origin {
     }
 }
 
+/// Every structure over `mesh`: brute force and the layouts over its binned-SAH tree
+/// ([`every_accelerator`]), and the uniform grid.
+fn every_structure(mesh: &TriangleMesh) -> Vec<(&'static str, Box<dyn hbv::Accelerator>)> {
+    let tree = BinnedSahBuilder::default().build(mesh);
+    let mut all = every_accelerator(&tree, mesh);
+    all.push((
+        "grid",
+        Box::new(UniformGrid::new(mesh, GridConfig::default())),
+    ));
+    all
+}
+
 /// The `t` of a hit is within a few ulps of the exact one on slivers (aspect ratios up to
 /// 10⁷), on triangles hit by directions of length up to 10³⁴ (where the f32 depth products fall
 /// below the normal range), and on ordinary triangles, in every structure (before, a sliver
@@ -270,6 +282,58 @@ mod t_accuracy {
             .prop_filter("short", |v| v.length() > 0.1)
     }
 
+    /// A triangle from `a + start · along` to `a + along` (`along` scaled to `length`), its third
+    /// vertex `width · length` off that edge across it; `None` if `across` is along it or the
+    /// triangle is degenerate.
+    fn sliver(
+        a: Vec3,
+        along: Vec3,
+        across: Vec3,
+        length: f32,
+        width: f32,
+        start: f32,
+    ) -> Option<[Vec3; 3]> {
+        let along = along.normalize() * length;
+        let across =
+            (across - across.dot(along) / along.length_squared() * along).normalize_or_zero();
+        let p = [
+            a + start * along,
+            a + along,
+            a + 0.3 * along + across * width * length,
+        ];
+        (across != Vec3::ZERO && !hbv::geometry::Triangle::new(p[0], p[1], p[2]).is_degenerate())
+            .then_some(p)
+    }
+
+    /// The point of `p` at barycentrics `(u, v)`, folded into the triangle where `u + v > 1`.
+    fn point_on(p: [Vec3; 3], u: f32, v: f32) -> Vec3 {
+        let (u, v) = if u + v > 1.0 {
+            (1.0 - u, 1.0 - v)
+        } else {
+            (u, v)
+        };
+        p[0] + (p[1] - p[0]) * u + (p[2] - p[0]) * v
+    }
+
+    /// Whether the ray meets the plane of `p` at `t` well inside it: barycentrics of the plane
+    /// point, in f64, at least 1 % (the f32 vertices and ray are not the ones aimed with).
+    fn passes_well_inside(p: [Vec3; 3], origin: Vec3, direction: Vec3, t: f64) -> bool {
+        let [pa, pb, pc] = p.map(|v| v.as_dvec3());
+        let point = origin.as_dvec3() + direction.as_dvec3() * t;
+        let n = (pb - pa).cross(pc - pa);
+        let weight = |q: hbv::glam::DVec3, r: hbv::glam::DVec3| {
+            (r - q).cross(point - q).dot(n) / n.length_squared()
+        };
+        [weight(pb, pc), weight(pc, pa), weight(pa, pb)]
+            .iter()
+            .all(|&w| w > 0.01)
+    }
+
+    /// `found` against the exact `t`, in ulps of `t`.
+    fn ulps(found: f64, t: f64) -> f64 {
+        (found - t).abs() / (f32::EPSILON as f64 * t.abs())
+    }
+
     proptest! {
         #![proptest_config(crate::common::cases(256))]
 
@@ -283,14 +347,10 @@ mod t_accuracy {
             distance in prop_oneof![Just(1.0f32), 1.0f32..100.0],
             scale in prop_oneof![Just(1.0f32), Just(1e10), Just(1e30), Just(1e34), Just(1e-20)],
         ) {
-            let along = along.normalize() * length;
-            let across = (across - across.dot(along) / along.length_squared() * along).normalize_or_zero();
-            prop_assume!(across != Vec3::ZERO);
-            let p = [a, a + along, a + 0.3 * along + across * width * length];
-            let tri = hbv::geometry::Triangle::new(p[0], p[1], p[2]);
-            prop_assume!(!tri.is_degenerate());
-            let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
-            let target = p[0] + (p[1] - p[0]) * u + (p[2] - p[0]) * v;
+            let p = sliver(a, along, across, length, width, 0.0);
+            prop_assume!(p.is_some());
+            let p = p.unwrap();
+            let target = point_on(p, u, v);
             let origin = target + from.normalize() * distance;
             let direction = (target - origin) * scale;
             let normal = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
@@ -298,28 +358,17 @@ mod t_accuracy {
             prop_assume!(normal.dot(direction.normalize()).abs() > 0.3);
             let (t, error) = plane_distance_with_error(p, origin, direction);
             prop_assume!(error < 1e-9 * t.abs());
-            // The f32 vertices and ray are not the ones aimed with: the line must still pass
-            // well inside (barycentrics of its plane point, in f64, at least 1 %).
-            let [pa, pb, pc] = p.map(|v| v.as_dvec3());
-            let point = origin.as_dvec3() + direction.as_dvec3() * t;
-            let n = (pb - pa).cross(pc - pa);
-            let weight = |q: hbv::glam::DVec3, r: hbv::glam::DVec3| (r - q).cross(point - q).dot(n) / n.length_squared();
-            prop_assume!([weight(pb, pc), weight(pc, pa), weight(pa, pb)].iter().all(|&w| w > 0.01));
+            prop_assume!(passes_well_inside(p, origin, direction, t));
             let mesh = TriangleMesh::new(p.to_vec(), vec![[0, 1, 2]]).unwrap();
-            let tree = BinnedSahBuilder::default().build(&mesh);
             let ray = Ray::new(origin, direction);
-            let grid = UniformGrid::new(&mesh, GridConfig::default());
-            let mut all = every_accelerator(&tree, &mesh);
-            all.push(("grid", Box::new(grid)));
-            for (name, accel) in all {
+            for (name, accel) in every_structure(&mesh) {
                 // The target lies inside, away from the edges: a hit.
                 let hit = accel.intersect(&ray);
                 prop_assert!(hit.is_some(), "{}: misses", name);
                 let found = hit.unwrap().t as f64;
                 prop_assert!(
-                    (found - t).abs() <= 16.0 * f32::EPSILON as f64 * t.abs(),
-                    "{}: t {} against the exact {} ({:.1} ulps)",
-                    name, found, t, (found - t).abs() / (f32::EPSILON as f64 * t.abs())
+                    ulps(found, t) <= 16.0,
+                    "{}: t {} against the exact {} ({:.1} ulps)", name, found, t, ulps(found, t)
                 );
             }
         }
@@ -337,14 +386,10 @@ mod t_accuracy {
             (incline, sideways) in (0.0f32..1.0, unit()),
             distance in prop_oneof![1e-6f32..1e-3, 1e-3f32..1.0],
         ) {
-            let along = along.normalize() * length;
-            let across = (across - across.dot(along) / along.length_squared() * along).normalize_or_zero();
-            prop_assume!(across != Vec3::ZERO);
-            let p = [a - along, a + along, a + 0.3 * along + across * width * length];
-            let tri = hbv::geometry::Triangle::new(p[0], p[1], p[2]);
-            prop_assume!(!tri.is_degenerate());
-            let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
-            let target = p[0] + (p[1] - p[0]) * u + (p[2] - p[0]) * v;
+            let p = sliver(a, along, across, length, width, -1.0);
+            prop_assume!(p.is_some());
+            let p = p.unwrap();
+            let target = point_on(p, u, v);
             // Arriving at `target` from `distance · length` away, at an angle to the plane
             // from grazing (cos 1e-4) to head on.
             let normal = (p[1] - p[0]).cross(p[2] - p[0]).normalize();
@@ -359,35 +404,24 @@ mod t_accuracy {
             // a twentieth of it still has 200, and lets hits a millionth of the triangle's
             // length from the origin be checked.
             prop_assume!(t > 0.0 && bound / 20.0 < 1e-9 * t);
-            let [pa, pb, pc] = p.map(|v| v.as_dvec3());
-            let point = origin.as_dvec3() + direction.as_dvec3() * t;
-            let n = (pb - pa).cross(pc - pa);
-            let weight = |q: hbv::glam::DVec3, r: hbv::glam::DVec3| (r - q).cross(point - q).dot(n) / n.length_squared();
-            prop_assume!([weight(pb, pc), weight(pc, pa), weight(pa, pb)].iter().all(|&w| w > 0.01));
+            prop_assume!(passes_well_inside(p, origin, direction, t));
             let mesh = TriangleMesh::new(p.to_vec(), vec![[0, 1, 2]]).unwrap();
-            let tree = BinnedSahBuilder::default().build(&mesh);
             let ray = Ray::new(origin, direction);
-            let grid = UniformGrid::new(&mesh, GridConfig::default());
-            let mut all = every_accelerator(&tree, &mesh);
-            all.push(("grid", Box::new(grid)));
-            for (name, accel) in all {
+            for (name, accel) in every_structure(&mesh) {
                 // Alone, and eight alike in a batch (a packet where the layout has them).
-                let alone = accel.intersect(&ray);
-                let batch = accel.intersect_batch(&[ray; 8]);
-                for hit in std::iter::once(alone).chain(batch) {
+                for hit in std::iter::once(accel.intersect(&ray)).chain(accel.intersect_batch(&[ray; 8])) {
                     prop_assert!(hit.is_some(), "{}: misses", name);
                     let found = hit.unwrap().t as f64;
-
                     prop_assert!(
-                        (found - t).abs() <= 16.0 * f32::EPSILON as f64 * t.abs(),
-                        "{}: t {} against the exact {} ({:.1} ulps)",
-                        name, found, t, (found - t).abs() / (f32::EPSILON as f64 * t.abs())
+                        ulps(found, t) <= 16.0,
+                        "{}: t {} against the exact {} ({:.1} ulps)", name, found, t, ulps(found, t)
                     );
                 }
             }
         }
     }
 }
+
 /// A sliver of aspect 10⁷ through the coordinates' origin, hit at a grazing angle (the cosine
 /// to its normal 6e-4) 0.02 from a ray origin on its long axis, 100 from its vertices: the
 /// depths of the vertices cancel in any f32 or f64 weighted mean, and the f64 plane equation
@@ -407,10 +441,7 @@ fn a_sliver_hit_at_a_grazing_angle_next_to_the_origin_is_met_at_its_exact_t() {
     let direction = Vec3::new(-2.917_419e24, 4.279_913_8e24, -5.932_449e24);
     let exact_t = 3_175.319_714_920_403_4 * 2f64.powi(-100);
     let mesh = TriangleMesh::new(p.to_vec(), vec![[0, 1, 2]]).unwrap();
-    let tree = BinnedSahBuilder::default().build(&mesh);
-    let grid = UniformGrid::new(&mesh, GridConfig::default());
-    let mut all = every_accelerator(&tree, &mesh);
-    all.push(("grid", Box::new(grid)));
+    let all = every_structure(&mesh);
     for scale in [0, 40, 80, 100] {
         let ray = Ray::new(origin, direction * 2f32.powi(-scale));
         let t = exact_t * 2f64.powi(scale);

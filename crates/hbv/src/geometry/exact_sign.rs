@@ -176,19 +176,17 @@ fn add_determinant(sum: &mut ExactSum, sign: f64, a: Vec3, b: Vec3, c: Vec3) {
 /// terms: thousands of operations, for the hits where the f64 value is too poorly
 /// conditioned to give `t` to an f32 ulp (`Triangle::plane_distance`).
 pub(crate) fn plane_numerator(p: [Vec3; 3], o: Vec3) -> Option<f64> {
+    // `det[p0 − o, p1 − o, p2 − o]`, the same value, from the differences where they are exact
+    // in f64 (nearly always): in f64 where that is exact (an origin exactly on an axis-aligned
+    // face: tens of operations), else in double-f64 where that is close enough.
+    if let [Some(a), Some(b), Some(c)] = p.map(|q| difference_if_exact(q, o)) {
+        let value =
+            determinant_if_exact_in_f64(a, b, c).or_else(|| determinant_in_double_f64(a, b, c));
+        if value.is_some() {
+            return value;
+        }
+    }
     let [p0, p1, p2] = p;
-    // `det[p0 − o, p1 − o, p2 − o]`, the same value, first in f64 where that is exact (an
-    // origin exactly on an axis-aligned face: tens of operations).
-    let exact = || {
-        let w = [p0, p1, p2].map(|q| difference_if_exact(q, o));
-        determinant_if_exact_in_f64(w[0]?, w[1]?, w[2]?)
-    };
-    if let Some(value) = exact() {
-        return Some(value);
-    }
-    if let Some(value) = plane_numerator_in_double_f64(p, o) {
-        return Some(value);
-    }
     let mut sum = ExactSum::new();
     add_determinant(&mut sum, 1.0, p1, p2, p0);
     add_determinant(&mut sum, -1.0, p1, p2, o);
@@ -197,20 +195,15 @@ pub(crate) fn plane_numerator(p: [Vec3; 3], o: Vec3) -> Option<f64> {
     sum.value()
 }
 
-/// [`plane_numerator`] as `det[p0 − o, p1 − o, p2 − o]` in double-f64 arithmetic (each of its
-/// six products of three exact differences split into a leading f64 and a remainder by
-/// `two_product`, the sums carried by `two_sum`), if that is within `2^-26` of it: its error is
-/// at most about `2^-96` of the terms' magnitudes `P` (the remainders' own sum rounds), and it
-/// is kept where `P` is at most `2^70` times its value. An origin within f32 rounding of a slanted face (`P` about `2^24` times
-/// `|value|`, beyond plain f64's reach for an ulp of `t`) is decided here in a few hundred
-/// operations. `None` (the expansion decides) where a difference is not exact in f64 or the
-/// value is smaller still: zero or within about `2^-70` of the terms.
-fn plane_numerator_in_double_f64(p: [Vec3; 3], o: Vec3) -> Option<f64> {
-    let [a, b, c] = [
-        difference_if_exact(p[0], o)?,
-        difference_if_exact(p[1], o)?,
-        difference_if_exact(p[2], o)?,
-    ];
+/// `det[a, b, c]` (rows) in double-f64 arithmetic (each of its six products split into a
+/// leading f64 and a remainder by `two_product`, the sums carried by `two_sum`), if that is
+/// within `2^-26` of it: its error is at most about `2^-96` of the terms' magnitudes `P` (the
+/// remainders' own sum rounds), and it is kept where `P` is at most `2^70` times its value.
+/// [`plane_numerator`] decides here an origin within f32 rounding of a slanted face (`P` about
+/// `2^24` times `|value|`, beyond plain f64's reach for an ulp of `t`) in a few hundred
+/// operations. `None` (the expansion decides) where the value is smaller still: zero or within
+/// about `2^-70` of the terms.
+fn determinant_in_double_f64(a: [f64; 3], b: [f64; 3], c: [f64; 3]) -> Option<f64> {
     let (mut sum, mut low, mut magnitude) = (0.0, 0.0, 0.0);
     for (i, j, k, sign) in [
         (0, 1, 2, 1.0),
@@ -364,8 +357,9 @@ mod tests {
         z ^ (z >> 31)
     }
 
-    /// `plane_numerator` and `plane_denominator` of integer triangles and rays (where i128 is exact): the values
-    /// within a few f64 ulps, exactly 0 for an origin on the plane or a direction along it.
+    /// `plane_numerator` and `plane_denominator` of integer triangles and rays (where i128 is
+    /// exact): the values close to the exact ones, exactly 0 for an origin on the plane or a
+    /// direction along it.
     #[test]
     fn plane_parameters_match_integer_arithmetic() {
         let mut state = 7;

@@ -494,10 +494,11 @@ impl Triangle {
     /// product (`7 ε₆₄` times the sum of its terms' magnitudes, the cross product's included:
     /// each product and sum rounds once, the differences at most once). Where either bound
     /// exceeds `2^23` times its value (so that `t` might be off by more than `2^-25` of
-    /// itself, a hundredth of an f32 ulp), that one is summed exactly instead
-    /// (`exact_sign::plane_numerator`, `plane_denominator`: Shewchuk's expansions, "Adaptive Precision
-    /// Floating-Point Arithmetic and Fast Robust Geometric Predicates", 1997). That happens
-    /// where the origin is on or within about `10⁻⁶` relative of the plane, or the ray or the
+    /// itself, a quarter of an f32 ulp), that one is evaluated more exactly instead
+    /// (`exact_sign::plane_numerator`: double-f64, else exact; `plane_denominator`: exact;
+    /// Shewchuk's expansions, "Adaptive Precision Floating-Point Arithmetic and Fast Robust
+    /// Geometric Predicates", 1997). That happens where the origin is on or within about
+    /// `10⁻⁷` relative of the plane, or the ray or the
     /// edges are as close to parallel: the quotient then carries the exact values' signs, and
     /// a 0 is a 0. (Before, the numerator's sign came from `robust::orient3d`, exact, but its
     /// value only to within its own error bound.)
@@ -577,7 +578,8 @@ pub(crate) const DEPTH_FLOOR: f32 = f32::from_bits(27 << 23);
 
 /// How many times its f64 value a dot product's sum of term magnitudes may be for
 /// [`Triangle::plane_distance`] to keep the f64 quotient: `2^23`, so that with the `7 ε₆₄`
-/// rounding of each the quotient is within `2 · 7 · 2^-29 < 2^-25` of itself: with the final rounding, within an f32 ulp.
+/// rounding of each the quotient is within `2 · 7 · 2^-29 < 2^-25` of itself (with the final
+/// rounding, within an f32 ulp).
 const WELL_CONDITIONED: f64 = (1u64 << 23) as f64;
 
 /// `8 ε` of [`edge_error`].
