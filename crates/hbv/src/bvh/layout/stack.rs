@@ -6,7 +6,9 @@ use std::mem::MaybeUninit;
 /// A LIFO of `T` with `INLINE` entries stored inline; pushes beyond that go to a `Vec`.
 ///
 /// The inline array is left uninitialized (a traversal starts one per ray, and zeroing 64
-/// entries would cost more than most rays' pushes).
+/// entries would cost more than most rays' pushes). `len` counts every entry, inline and
+/// spilled: entries `0..INLINE` are inline, the rest in `spill`, so a pop asks one length
+/// whether the stack is empty and (a branch that is always predicted) where its top is.
 pub(crate) struct TraversalStack<T: Copy, const INLINE: usize> {
     inline: [MaybeUninit<T>; INLINE],
     len: usize,
@@ -27,10 +29,10 @@ impl<T: Copy, const INLINE: usize> TraversalStack<T, INLINE> {
     pub fn push(&mut self, value: T) {
         if self.len < INLINE {
             self.inline[self.len] = MaybeUninit::new(value);
-            self.len += 1;
         } else {
             self.spill.push(value);
         }
+        self.len += 1;
     }
 
     /// Pushes `value` if `keep`, without branching on `keep` while the inline array has room
@@ -38,11 +40,11 @@ impl<T: Copy, const INLINE: usize> TraversalStack<T, INLINE> {
     #[inline]
     pub fn push_if(&mut self, value: T, keep: bool) {
         if self.len < INLINE {
-            // `len < INLINE` means nothing has spilled: the inline top is the stack's top.
             self.inline[self.len] = MaybeUninit::new(value);
             self.len += usize::from(keep);
         } else if keep {
             self.spill.push(value);
+            self.len += 1;
         }
     }
 
@@ -55,15 +57,16 @@ impl<T: Copy, const INLINE: usize> TraversalStack<T, INLINE> {
 
     #[inline]
     pub fn pop(&mut self) -> Option<T> {
-        if let Some(v) = self.spill.pop() {
-            return Some(v);
-        }
         if self.len == 0 {
             return None;
         }
         self.len -= 1;
-        // SAFETY: entries below `len` were written by `push`.
-        Some(unsafe { self.inline[self.len].assume_init() })
+        if self.len < INLINE {
+            // SAFETY: inline entries below `len` were written by `push`.
+            Some(unsafe { self.inline[self.len].assume_init() })
+        } else {
+            self.spill.pop()
+        }
     }
 }
 
