@@ -1,6 +1,27 @@
 //! A binary tree from an n-ary one: what the ordered and wide layouts start from.
 
+use std::borrow::Cow;
+
 use crate::bvh::tree::{BuildTree, NodeContent, NodeId};
+
+/// `tree` itself when every node reachable from its root is a leaf or has exactly two children
+/// (the top-down builders' trees), else [`binarize`]'s copy: the binary tree the layouts start
+/// from, without copying one that is binary already (a copy of the dragon's 1.9 million nodes,
+/// a vector each, took about a tenth of the wide layout's making).
+pub(crate) fn binary_form(tree: &BuildTree) -> Cow<'_, BuildTree> {
+    // Every node of the arena, in memory order (a walk from the root reads them in a scattered
+    // order, and took as long as the rest of this check ten times over): released nodes too,
+    // which can only make a binary tree look n-ary, and then it is copied, as before.
+    let binary = tree
+        .nodes()
+        .iter()
+        .all(|node| node.is_leaf() || node.children().len() == 2);
+    if binary {
+        Cow::Borrowed(tree)
+    } else {
+        Cow::Owned(binarize(tree))
+    }
+}
 
 /// A copy of `tree` in which every internal node has exactly two children.
 ///

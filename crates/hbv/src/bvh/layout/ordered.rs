@@ -1,6 +1,6 @@
 //! A binary tree with sibling nodes side by side, traversed nearest child first with a stack.
 
-use super::binarize::binarize;
+use super::binarize::binary_form;
 use super::leaf_triangles::{
     any_hit_in_leaves, closest_hit_in_leaves, LeafTriangles, LeafVisitingLayout,
 };
@@ -38,7 +38,7 @@ pub struct OrderedLayout {
 impl OrderedLayout {
     /// Lays out `tree` (binarized first if it has n-ary nodes).
     pub fn new(tree: &BuildTree, mesh: &TriangleMesh) -> Self {
-        let binary = binarize(tree);
+        let binary = binary_form(tree);
         let mut layout = Self {
             nodes: Vec::with_capacity(binary.nodes().len()),
             leaves: LeafTriangles::default(),

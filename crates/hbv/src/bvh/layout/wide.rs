@@ -11,7 +11,7 @@ use traversal::{Step, Traversal};
 
 pub(super) use triangle_packet::TrianglePacket;
 
-use super::binarize::binarize;
+use super::binarize::binary_form;
 use super::stack::TraversalStack;
 use super::wide_kernels::{BoxRay, LaneBoxes, Lanes};
 use crate::bvh::tree::{BuildTree, NodeContent, NodeId};
@@ -97,7 +97,7 @@ impl<const W: usize> WideLayout<W> {
     pub fn new(tree: &BuildTree, mesh: &TriangleMesh) -> Self {
         #[allow(clippy::let_unit_value)]
         let () = Self::VALID_WIDTH;
-        let binary = binarize(tree);
+        let binary = binary_form(tree);
         let counts = subtree_triangle_counts(&binary);
         let mut layout = Self {
             nodes: Vec::new(),
@@ -110,6 +110,11 @@ impl<const W: usize> WideLayout<W> {
             interleave: false,
         };
         if let Some(root) = binary.root() {
+            // About 3.3 triangles per packet and 4 packets per node in the shared scenes:
+            // room for all of them at once, rather than copies as the arrays grow.
+            let packets = counts[root as usize] as usize / 3 + 1;
+            layout.packets.reserve(packets);
+            layout.nodes.reserve(packets / 3 + 1);
             let reference = layout.emit(&binary, &counts, mesh, root);
             let bounds = binary.node(root).bounds;
             layout.root = Some((reference, bounds, PreparedRay::scene_size(&bounds)));
@@ -153,21 +158,26 @@ impl<const W: usize> WideLayout<W> {
     }
 
     /// Emits the subtree at binary node `id` as the collapse `plan` says, and returns its
-    /// reference. Iterative over a work list, so that no depth overflows the call stack.
+    /// reference. Iterative over a work list, so that no depth overflows the call stack; no
+    /// allocation per node (a leaf's triangles are gathered into one reused list).
     fn emit(&mut self, binary: &BuildTree, counts: &[u32], mesh: &TriangleMesh, id: NodeId) -> u32 {
         let is_leaf = |c: NodeId| binary.node(c).is_leaf() || counts[c as usize] as usize <= 4;
+        let mut prims = Vec::new();
         if is_leaf(id) {
-            return self.emit_leaf(mesh, &binary.prims_below(id));
+            gather_prims(binary, id, &mut prims);
+            return self.emit_leaf(mesh, &prims);
         }
         let root = self.nodes.len() as u32;
         self.nodes.push(WideNode::empty());
         let mut work: Vec<(NodeId, u32)> = vec![(id, root)];
         while let Some((id, slot)) = work.pop() {
             let mut node = WideNode::empty();
-            for (lane, c) in collapse::<W>(binary, counts, id).into_iter().enumerate() {
+            let (children, count) = collapse::<W>(binary, counts, id);
+            for (lane, &c) in children[..count].iter().enumerate() {
                 node.set_box(lane, &binary.node(c).bounds);
                 node.children[lane] = if is_leaf(c) {
-                    self.emit_leaf(mesh, &binary.prims_below(c))
+                    gather_prims(binary, c, &mut prims);
+                    self.emit_leaf(mesh, &prims)
                 } else {
                     let index = self.nodes.len() as u32;
                     self.nodes.push(WideNode::empty());
@@ -202,14 +212,15 @@ impl<const W: usize> WideLayout<W> {
             first <= LEAF_FIRST_MASK,
             "too many triangle packets for the wide layout"
         );
-        let triangles: Vec<(u32, crate::geometry::Triangle)> = prims
-            .iter()
-            .map(|&p| (p, mesh.triangle(p as usize)))
-            .collect();
-        for chunk in triangles.chunks(4) {
-            self.packets.push(TrianglePacket::new(chunk));
+        for chunk in prims.chunks(4) {
+            let triangles: [(u32, crate::geometry::Triangle); 4] = std::array::from_fn(|k| {
+                let p = chunk[k.min(chunk.len() - 1)];
+                (p, mesh.triangle(p as usize))
+            });
+            self.packets
+                .push(TrianglePacket::new(&triangles[..chunk.len()]));
         }
-        let count = triangles.len().div_ceil(4) as u32;
+        let count = prims.len().div_ceil(4) as u32;
         LEAF | ((count - 1) << LEAF_COUNT_SHIFT) | first
     }
 
@@ -396,13 +407,23 @@ impl<const W: usize> WideNode<W> {
     }
 }
 
-/// The children of a wide node made from binary node `id`: start from its two children and
-/// open the internal child of largest surface area until there are `W` or none can be opened.
-/// A child whose subtree holds at most four triangles is not opened: it becomes one leaf.
-fn collapse<const W: usize>(binary: &BuildTree, counts: &[u32], id: NodeId) -> Vec<NodeId> {
-    let mut children: Vec<NodeId> = binary.node(id).children().to_vec();
-    while children.len() < W {
-        let openable = children
+/// The children of a wide node made from binary node `id`, and how many there are: start from
+/// its two children and open the internal child of largest surface area until there are `W` or
+/// none can be opened. A child whose subtree holds at most four triangles is not opened: it
+/// becomes one leaf.
+fn collapse<const W: usize>(
+    binary: &BuildTree,
+    counts: &[u32],
+    id: NodeId,
+) -> ([NodeId; W], usize) {
+    let mut children = [0; W];
+    let mut count = 0;
+    for &c in binary.node(id).children() {
+        children[count] = c;
+        count += 1;
+    }
+    while count < W {
+        let openable = children[..count]
             .iter()
             .enumerate()
             .filter(|(_, &c)| !binary.node(c).is_leaf() && counts[c as usize] > 4)
@@ -416,10 +437,34 @@ fn collapse<const W: usize>(binary: &BuildTree, counts: &[u32], id: NodeId) -> V
         let Some((k, _)) = openable else {
             break;
         };
-        let opened = children.swap_remove(k);
-        children.extend_from_slice(binary.node(opened).children());
+        // `swap_remove` of slot `k`, then the opened node's two children at the end.
+        let opened = children[k];
+        count -= 1;
+        children[k] = children[count];
+        for &c in binary.node(opened).children() {
+            children[count] = c;
+            count += 1;
+        }
     }
-    children
+    (children, count)
+}
+
+/// The triangles of every leaf below `node`, leaves left to right, into `prims` (cleared
+/// first): [`BuildTree::prims_below`] into a list the caller reuses.
+fn gather_prims(tree: &BuildTree, node: NodeId, prims: &mut Vec<u32>) {
+    prims.clear();
+    let n = tree.node(node);
+    if n.is_leaf() {
+        // Most wide leaves are one leaf of the binary tree.
+        prims.extend_from_slice(n.prims());
+        return;
+    }
+    let mut pending = vec![node];
+    while let Some(id) = pending.pop() {
+        let n = tree.node(id);
+        prims.extend_from_slice(n.prims());
+        pending.extend(n.children().iter().rev());
+    }
 }
 
 /// The median over `packets` of the largest extent of each packet's box (0 for none).
@@ -446,13 +491,39 @@ fn median_packet_extent(packets: &[TrianglePacket]) -> f32 {
 /// Number of triangles below each node of `tree` (by node id).
 fn subtree_triangle_counts(tree: &BuildTree) -> Vec<u32> {
     let mut counts = vec![0u32; tree.nodes().len()];
-    let mut order = Vec::with_capacity(tree.nodes().len());
-    tree.walk(|id, _| order.push(id));
-    for &id in order.iter().rev() {
-        let node = tree.node(id);
-        counts[id as usize] = match &node.content {
+    // The top-down builders store children before their parents: then one pass over the
+    // arena in memory order counts every node (a walk from the root reads them scattered).
+    // The pass stops at the first child stored after its parent, and the walk below counts.
+    let mut children_first = true;
+    for (id, node) in tree.nodes().iter().enumerate() {
+        counts[id] = match &node.content {
             NodeContent::Leaf(p) => p.len() as u32,
-            NodeContent::Internal(c) => c.iter().map(|&c| counts[c as usize]).sum(),
+            NodeContent::Internal(c) => {
+                children_first &= c.iter().all(|&c| (c as usize) < id);
+                if !children_first {
+                    break;
+                }
+                c.iter().map(|&c| counts[c as usize]).sum()
+            }
+        };
+    }
+    if children_first {
+        return counts;
+    }
+    // Post-order, each node once on the way down (its children pushed after it) and its count
+    // summed on the way up, once the children's are known.
+    let mut pending: Vec<(NodeId, bool)> = tree.root().into_iter().map(|r| (r, false)).collect();
+    while let Some((id, children_done)) = pending.pop() {
+        counts[id as usize] = match &tree.node(id).content {
+            NodeContent::Leaf(p) => p.len() as u32,
+            NodeContent::Internal(c) if children_done => {
+                c.iter().map(|&c| counts[c as usize]).sum()
+            }
+            NodeContent::Internal(c) => {
+                pending.push((id, true));
+                pending.extend(c.iter().map(|&c| (c, false)));
+                continue;
+            }
         };
     }
     counts
@@ -924,5 +995,38 @@ impl<const W: usize> WideLayout<W> {
             stream::any_leaf_visit!(),
             block,
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::build::{BinnedSahBuilder, Builder, InsertionBuilder};
+    use crate::bvh::optimize::{ReinsertionConfig, ReinsertionOptimizer};
+    use crate::mesh::procedural::torus;
+    use glam::Vec3;
+
+    /// Triangle counts by the pass in memory order (children stored first: the top-down
+    /// builders) and by the walk (children stored after a parent: an optimized tree, whose
+    /// released ids are reused) are each node's triangles.
+    #[test]
+    fn triangle_counts_whatever_the_order_of_the_nodes() {
+        let mesh = torus(Vec3::ZERO, 2.0, 0.5, 24, 12);
+        let sah = BinnedSahBuilder::default().build(&mesh);
+        let insertion = InsertionBuilder::default().build(&mesh);
+        let mut optimized = sah.clone();
+        ReinsertionOptimizer::new(ReinsertionConfig::default()).optimize(&mut optimized);
+        let child_after_parent = |tree: &BuildTree| {
+            (tree.nodes().iter().enumerate())
+                .any(|(id, node)| node.children().iter().any(|&c| c as usize > id))
+        };
+        assert!(!child_after_parent(&sah));
+        assert!(child_after_parent(&optimized), "the optimizer reused ids");
+        for tree in [&sah, &insertion, &optimized] {
+            let counts = subtree_triangle_counts(tree);
+            tree.walk(|id, _| {
+                assert_eq!(counts[id as usize] as usize, tree.prims_below(id).len());
+            });
+        }
     }
 }
