@@ -121,13 +121,14 @@ impl SearchTree {
         let Some(root) = tree.root() else {
             return search;
         };
-        let below = triangles_below(tree);
+        let below = tree.triangle_counts();
         let leaf_max = config.leaf_triangles.max(1) as u32;
         // Sized for every triangle at once, not grown by doubling (copies, fresh pages).
         let n = mesh.triangle_count();
         let mut planned = PacketPlan {
             triangles: Vec::with_capacity(n),
             groups: Vec::with_capacity(n.div_ceil(LANES) * 2),
+            leaf: Vec::new(),
         };
         // Nodes to try a rotated frame for: (node, its slots, their aligned boxes, the slots
         // given a child), decided in parallel once the shape is known.
@@ -270,7 +271,8 @@ impl SearchTree {
         planned: &mut PacketPlan,
     ) -> u32 {
         let start = planned.triangles.len();
-        for p in tree.prims_below(id) {
+        tree.prims_below_into(id, &mut planned.leaf);
+        for &p in &planned.leaf {
             let t = mesh.triangle(p as usize);
             if t.is_degenerate() {
                 continue;
@@ -294,6 +296,8 @@ impl SearchTree {
 struct PacketPlan {
     triangles: Vec<(u32, [Vec3; 3])>,
     groups: Vec<std::ops::Range<usize>>,
+    /// One leaf's face ids at a time (reused: no list per leaf).
+    leaf: Vec<u32>,
 }
 
 impl Slot {
@@ -325,16 +329,20 @@ fn rotated_boxes(
     slots: &[Slot],
     aligned: &[SlotBox],
 ) -> Option<(NodeFrame, Vec<SlotBox>)> {
+    let mut prims = Vec::new();
     let triangles: Vec<Vec<[Vec3; 3]>> = slots
         .iter()
         .map(|slot| {
-            slot.members()
-                .iter()
-                .flat_map(|&id| tree.prims_below(id))
-                .map(|p| mesh.triangle(p as usize))
-                .filter(|t| !t.is_degenerate())
-                .map(|t| [t.p0, t.p1, t.p2])
-                .collect()
+            let mut triangles = Vec::new();
+            for &id in slot.members() {
+                tree.prims_below_into(id, &mut prims);
+                triangles.extend(
+                    (prims.iter().map(|&p| mesh.triangle(p as usize)))
+                        .filter(|t| !t.is_degenerate())
+                        .map(|t| [t.p0, t.p1, t.p2]),
+                );
+            }
+            triangles
         })
         .collect();
     let (mut normal, mut area) = (DVec3::ZERO, 0.0);
@@ -382,19 +390,4 @@ fn group_in_width(tree: &BuildTree, mut members: Vec<NodeId>) -> Vec<Vec<NodeId>
     (0..WIDTH)
         .map(|g| members[g * n / WIDTH..(g + 1) * n / WIDTH].to_vec())
         .collect()
-}
-
-/// The number of triangles below each build node (indexed by node id; 0 for nodes not
-/// reachable from the root), children counted before parents.
-fn triangles_below(tree: &BuildTree) -> Vec<u32> {
-    let mut order = Vec::new();
-    tree.walk(|id, _| order.push(id));
-    let mut below = vec![0u32; tree.nodes().len()];
-    for &id in order.iter().rev() {
-        below[id as usize] = match &tree.node(id).content {
-            NodeContent::Leaf(prims) => prims.len() as u32,
-            NodeContent::Internal(children) => children.iter().map(|&c| below[c as usize]).sum(),
-        };
-    }
-    below
 }

@@ -14,7 +14,7 @@ pub(super) use triangle_packet::TrianglePacket;
 use super::binarize::binary_form;
 use super::stack::TraversalStack;
 use super::wide_kernels::{BoxRay, LaneBoxes, Lanes};
-use crate::bvh::tree::{BuildTree, NodeContent, NodeId};
+use crate::bvh::tree::{BuildTree, NodeId};
 use crate::geometry::{Aabb, EdgeRule, PreparedRay, Ray, TriangleHit};
 use crate::mesh::TriangleMesh;
 use crate::query::{record_hit, Hit, TraversalKernel};
@@ -98,7 +98,7 @@ impl<const W: usize> WideLayout<W> {
         #[allow(clippy::let_unit_value)]
         let () = Self::VALID_WIDTH;
         let binary = binary_form(tree);
-        let counts = subtree_triangle_counts(&binary);
+        let counts = binary.triangle_counts();
         let mut layout = Self {
             nodes: Vec::new(),
             packets: Vec::new(),
@@ -164,7 +164,7 @@ impl<const W: usize> WideLayout<W> {
         let is_leaf = |c: NodeId| binary.node(c).is_leaf() || counts[c as usize] as usize <= 4;
         let mut prims = Vec::new();
         if is_leaf(id) {
-            gather_prims(binary, id, &mut prims);
+            binary.prims_below_into(id, &mut prims);
             return self.emit_leaf(mesh, &prims);
         }
         let root = self.nodes.len() as u32;
@@ -176,7 +176,7 @@ impl<const W: usize> WideLayout<W> {
             for (lane, &c) in children[..count].iter().enumerate() {
                 node.set_box(lane, &binary.node(c).bounds);
                 node.children[lane] = if is_leaf(c) {
-                    gather_prims(binary, c, &mut prims);
+                    binary.prims_below_into(c, &mut prims);
                     self.emit_leaf(mesh, &prims)
                 } else {
                     let index = self.nodes.len() as u32;
@@ -449,24 +449,6 @@ fn collapse<const W: usize>(
     (children, count)
 }
 
-/// The triangles of every leaf below `node`, leaves left to right, into `prims` (cleared
-/// first): [`BuildTree::prims_below`] into a list the caller reuses.
-fn gather_prims(tree: &BuildTree, node: NodeId, prims: &mut Vec<u32>) {
-    prims.clear();
-    let n = tree.node(node);
-    if n.is_leaf() {
-        // Most wide leaves are one leaf of the binary tree.
-        prims.extend_from_slice(n.prims());
-        return;
-    }
-    let mut pending = vec![node];
-    while let Some(id) = pending.pop() {
-        let n = tree.node(id);
-        prims.extend_from_slice(n.prims());
-        pending.extend(n.children().iter().rev());
-    }
-}
-
 /// The median over `packets` of the largest extent of each packet's box (0 for none).
 fn median_packet_extent(packets: &[TrianglePacket]) -> f32 {
     let mut extents: Vec<f32> = packets
@@ -486,47 +468,6 @@ fn median_packet_extent(packets: &[TrianglePacket]) -> f32 {
     }
     let middle = extents.len() / 2;
     *extents.select_nth_unstable_by(middle, f32::total_cmp).1
-}
-
-/// Number of triangles below each node of `tree` (by node id).
-fn subtree_triangle_counts(tree: &BuildTree) -> Vec<u32> {
-    let mut counts = vec![0u32; tree.nodes().len()];
-    // The top-down builders store children before their parents: then one pass over the
-    // arena in memory order counts every node (a walk from the root reads them scattered).
-    // The pass stops at the first child stored after its parent, and the walk below counts.
-    let mut children_first = true;
-    for (id, node) in tree.nodes().iter().enumerate() {
-        counts[id] = match &node.content {
-            NodeContent::Leaf(p) => p.len() as u32,
-            NodeContent::Internal(c) => {
-                children_first &= c.iter().all(|&c| (c as usize) < id);
-                if !children_first {
-                    break;
-                }
-                c.iter().map(|&c| counts[c as usize]).sum()
-            }
-        };
-    }
-    if children_first {
-        return counts;
-    }
-    // Post-order, each node once on the way down (its children pushed after it) and its count
-    // summed on the way up, once the children's are known.
-    let mut pending: Vec<(NodeId, bool)> = tree.root().into_iter().map(|r| (r, false)).collect();
-    while let Some((id, children_done)) = pending.pop() {
-        counts[id as usize] = match &tree.node(id).content {
-            NodeContent::Leaf(p) => p.len() as u32,
-            NodeContent::Internal(c) if children_done => {
-                c.iter().map(|&c| counts[c as usize]).sum()
-            }
-            NodeContent::Internal(c) => {
-                pending.push((id, true));
-                pending.extend(c.iter().map(|&c| (c, false)));
-                continue;
-            }
-        };
-    }
-    counts
 }
 
 fn detect_avx2() -> bool {
@@ -995,38 +936,5 @@ impl<const W: usize> WideLayout<W> {
             stream::any_leaf_visit!(),
             block,
         )
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::bvh::build::{BinnedSahBuilder, Builder, InsertionBuilder};
-    use crate::bvh::optimize::{ReinsertionConfig, ReinsertionOptimizer};
-    use crate::mesh::procedural::torus;
-    use glam::Vec3;
-
-    /// Triangle counts by the pass in memory order (children stored first: the top-down
-    /// builders) and by the walk (children stored after a parent: an optimized tree, whose
-    /// released ids are reused) are each node's triangles.
-    #[test]
-    fn triangle_counts_whatever_the_order_of_the_nodes() {
-        let mesh = torus(Vec3::ZERO, 2.0, 0.5, 24, 12);
-        let sah = BinnedSahBuilder::default().build(&mesh);
-        let insertion = InsertionBuilder::default().build(&mesh);
-        let mut optimized = sah.clone();
-        ReinsertionOptimizer::new(ReinsertionConfig::default()).optimize(&mut optimized);
-        let child_after_parent = |tree: &BuildTree| {
-            (tree.nodes().iter().enumerate())
-                .any(|(id, node)| node.children().iter().any(|&c| c as usize > id))
-        };
-        assert!(!child_after_parent(&sah));
-        assert!(child_after_parent(&optimized), "the optimizer reused ids");
-        for tree in [&sah, &insertion, &optimized] {
-            let counts = subtree_triangle_counts(tree);
-            tree.walk(|id, _| {
-                assert_eq!(counts[id as usize] as usize, tree.prims_below(id).len());
-            });
-        }
     }
 }
