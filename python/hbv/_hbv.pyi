@@ -58,6 +58,11 @@ class BVH:
     scenes (walls around furniture) up to 1.4x faster to trace. ``stats()["optimize"]`` says
     which was chosen.
     leaf_size: most triangles per leaf, 1 to 255 (default: the builder's).
+
+    The tree is built at once (``stats()["build_seconds"]``); what each kind of query walks is
+    made from it on that kind's first call: the layout on the first ``intersect`` or
+    ``occluded``, the wide-8 layout on the first ``intersect_all``, ``count`` or ``contains``,
+    the nearest-point tree on the first ``closest_point`` or ``signed_distance``.
     """
 
     def __init__(

@@ -161,6 +161,33 @@ def test_threads_do_not_change_answers(sphere):
             np.testing.assert_array_equal(got, want)
 
 
+def test_structures_made_on_first_use_from_several_threads(sphere):
+    # A BVH lays out its ray structure on the first intersect or occluded, and its wide-8 and
+    # nearest-point structures on their queries' first calls: a first call made from several
+    # Python threads at once makes one, and every thread gets the answers of a BVH that had it.
+    from concurrent.futures import ThreadPoolExecutor
+
+    mesh, _, _ = sphere
+    o, d = random_rays(3000)
+    points = o[:500]
+    reference = hbv.BVH(mesh, layout="wide4")
+    want = (reference.intersect(o, d), reference.occluded(o, d), reference.count(o, d),
+            reference.closest_point(points))
+    for layout in ("wide8", "wide4"):
+        bvh = hbv.BVH(mesh, layout=layout)
+        queries = [lambda: bvh.intersect(o, d), lambda: bvh.occluded(o, d),
+                   lambda: bvh.count(o, d), lambda: bvh.closest_point(points)]
+        with ThreadPoolExecutor(8) as pool:
+            futures = [(k, pool.submit(queries[k])) for k in range(4) for _ in range(2)]
+            for k, future in futures:
+                got = future.result()
+                if isinstance(got, dict):
+                    for key in want[k]:
+                        np.testing.assert_array_equal(got[key], want[k][key], err_msg=f"{layout} {key}")
+                else:
+                    np.testing.assert_array_equal(got, want[k], err_msg=layout)
+
+
 def test_every_builder_and_layout_gives_the_same_answers(triangle_soup):
     mesh, _, _ = triangle_soup
     o, d = random_rays(1000)

@@ -107,21 +107,20 @@ impl BuildOptions {
         tree
     }
 
-    /// The layout named; the wide-8 one is returned apart too, since the all-hits queries use it.
+    /// The layout named, over `tree`; the wide-8 one is `wide()`'s, which the all-hits
+    /// queries share.
     pub fn lay_out(
         &self,
         tree: &BuildTree,
         mesh: &TriangleMesh,
-    ) -> (Arc<dyn Accelerator>, Option<Arc<Wide8Layout>>) {
+        wide: impl FnOnce() -> Arc<Wide8Layout>,
+    ) -> Arc<dyn Accelerator> {
         match self.layout.as_str() {
-            "wide4" => (Arc::new(Wide4Layout::new(tree, mesh)), None),
-            "ordered" => (Arc::new(OrderedLayout::new(tree, mesh)), None),
-            "recursive" => (Arc::new(RecursiveLayout::new(tree, mesh)), None),
-            "skip" => (Arc::new(SkipLayout::new(tree, mesh)), None),
-            _ => {
-                let wide = Arc::new(Wide8Layout::new(tree, mesh));
-                (wide.clone(), Some(wide))
-            }
+            "wide4" => Arc::new(Wide4Layout::new(tree, mesh)),
+            "ordered" => Arc::new(OrderedLayout::new(tree, mesh)),
+            "recursive" => Arc::new(RecursiveLayout::new(tree, mesh)),
+            "skip" => Arc::new(SkipLayout::new(tree, mesh)),
+            _ => wide(),
         }
     }
 }

@@ -37,15 +37,23 @@ use crate::thread_pool::{one_thread, run_here_or_on_threads, ThreadCount};
 /// save(path) writes the tree with its mesh to a `.hbv` file; hbv.load_bvh(path) reads it back
 /// without building again.
 /// leaf_size: most triangles per leaf (1 to 255; default: the builder's).
+///
+/// The tree is built here (`stats()["build_seconds"]`); what each kind of query walks is made
+/// from it on that kind's first call: the layout on the first intersect or occluded, the wide-8
+/// layout on the first intersect_all, count or contains, the nearest-point tree on the first
+/// closest_point or signed_distance.
 #[pyclass(name = "BVH", module = "hbv", frozen)]
 pub struct PyBvh {
     mesh: Py<PyMesh>,
     triangles: Arc<TriangleMesh>,
     options: BuildOptions,
     tree: BuildTree,
-    accel: Arc<dyn Accelerator>,
-    /// The wide-8 layout of the same tree: the all-hits queries' structure (built on first use
-    /// unless it is the layout).
+    /// The tree laid out as `options.layout` says, for the closest- and any-hit queries: made
+    /// on the first of them, so that a BVH asked only for nearest points never lays out a ray
+    /// structure (the dragon's wide-8 layout takes a third of its build's time).
+    accel: OnceLock<Arc<dyn Accelerator>>,
+    /// The wide-8 layout of the same tree: the all-hits queries' structure (made on first use;
+    /// `accel` too when it is the layout).
     wide: OnceLock<Arc<Wide8Layout>>,
     /// The nearest-point search tree (built on first use).
     closest: OnceLock<ClosestPointTree>,
@@ -75,27 +83,13 @@ fn rows_of<T>(values: &[T]) -> FlatPoints<'_, T> {
 }
 
 impl PyBvh {
-    /// A BVH over a tree built elsewhere (loaded from a file): laid out, not built.
+    /// A BVH over a tree built elsewhere (loaded from a file), or built here in
+    /// `build_seconds`; its structures are laid out on first use.
     pub fn from_parts(
-        py: Python<'_>,
         mesh: Py<PyMesh>,
         triangles: Arc<TriangleMesh>,
         options: BuildOptions,
         tree: BuildTree,
-        settings: String,
-    ) -> Self {
-        let laid_out = py.detach(|| options.lay_out(&tree, &triangles));
-        Self::with_layout(mesh, triangles, options, tree, laid_out, 0.0, settings)
-    }
-
-    /// A BVH over `tree`, laid out as `laid_out` ([`BuildOptions::lay_out`]: the accelerator,
-    /// and the wide-8 layout when it is one, which the all-hits queries then share).
-    fn with_layout(
-        mesh: Py<PyMesh>,
-        triangles: Arc<TriangleMesh>,
-        options: BuildOptions,
-        tree: BuildTree,
-        (accel, wide): (Arc<dyn Accelerator>, Option<Arc<Wide8Layout>>),
         build_seconds: f64,
         settings: String,
     ) -> Self {
@@ -104,8 +98,8 @@ impl PyBvh {
             triangles,
             options,
             tree,
-            accel,
-            wide: wide.map_or_else(OnceLock::new, OnceLock::from),
+            accel: OnceLock::new(),
+            wide: OnceLock::new(),
             closest: OnceLock::new(),
             build_seconds,
             settings,
@@ -121,9 +115,20 @@ impl PyBvh {
         }
     }
 
-    fn wide(&self) -> &Wide8Layout {
+    fn wide(&self) -> &Arc<Wide8Layout> {
         self.wide
             .get_or_init(|| Arc::new(Wide8Layout::new(&self.tree, &self.triangles)))
+    }
+
+    /// The structure of the closest- and any-hit queries, laid out now if this is the first
+    /// (with the GIL released: other Python threads go on meanwhile).
+    fn accel(&self, py: Python<'_>) -> &dyn Accelerator {
+        let laid_out =
+            || (self.options).lay_out(&self.tree, &self.triangles, || self.wide().clone());
+        match self.accel.get() {
+            Some(accel) => &**accel,
+            None => &**py.detach(|| self.accel.get_or_init(laid_out)),
+        }
     }
 
     fn closest_tree(&self) -> &ClosestPointTree {
@@ -149,19 +154,17 @@ impl PyBvh {
         let optimize = optimize
             .unwrap_or_else(|| ReinsertionOptimizer::pays_by_default(triangles.triangle_count()));
         let options = BuildOptions::new(builder, layout, optimize, leaf_size)?;
-        let (tree, laid_out, build_seconds) = py.detach(|| {
+        let (tree, build_seconds) = py.detach(|| {
             let start = Instant::now();
             let tree = options.build(&triangles);
-            let laid_out = options.lay_out(&tree, &triangles);
-            (tree, laid_out, start.elapsed().as_secs_f64())
+            (tree, start.elapsed().as_secs_f64())
         });
         let settings = describe(&options);
-        Ok(Self::with_layout(
+        Ok(Self::from_parts(
             mesh.clone().unbind(),
             triangles,
             options,
             tree,
-            laid_out,
             build_seconds,
             settings,
         ))
@@ -196,7 +199,7 @@ impl PyBvh {
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        closest_hits(py, &*self.accel, &args, threads)
+        closest_hits(py, self.accel(py), &args, threads)
     }
 
     /// Any hit: a bool array, true where anything lies in [tmin, tmax] along the ray.
@@ -211,7 +214,7 @@ impl PyBvh {
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        any_hits(py, &*self.accel, &args, threads)
+        any_hits(py, self.accel(py), &args, threads)
     }
 
     /// Every hit along each ray, found in one traversal per ray: a tuple of arrays
@@ -230,7 +233,7 @@ impl PyBvh {
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        every_hit(py, || self.wide(), &args, threads)
+        every_hit(py, || &**self.wide(), &args, threads)
     }
 
     /// The number of hits along each ray (int64): the length of its `intersect_all` list, so
@@ -246,7 +249,7 @@ impl PyBvh {
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        hit_counts(py, || self.wide(), &args, threads)
+        hit_counts(py, || &**self.wide(), &args, threads)
     }
 
     /// Whether each point lies inside the (closed) mesh: bool array. One ray's parity, exact:
@@ -261,7 +264,7 @@ impl PyBvh {
         points: &Bound<'py, PyAny>,
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        inside(py, self.mesh.get(), || self.wide(), points, threads)
+        inside(py, self.mesh.get(), || &**self.wide(), points, threads)
     }
 
     /// The nearest surface point to each point: a dict of arrays `point` (N, 3) float64,

@@ -119,11 +119,11 @@ fn from_loaded(
     let triangles = Arc::new(file.mesh);
     let mesh = Py::new(py, PyMesh::new(triangles.clone()))?;
     Ok(PyBvh::from_parts(
-        py,
         mesh,
         triangles,
         options,
         file.tree,
+        0.0,
         file.settings,
     ))
 }
