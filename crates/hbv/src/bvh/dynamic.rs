@@ -390,7 +390,7 @@ impl DynamicBvh {
             return;
         }
         if let NodeContent::Leaf(prims) = &mut self.tree.node_mut(leaf).content {
-            prims.retain(|&p| p != id);
+            prims.retain(|p| *p != id);
             if !prims.is_empty() {
                 self.fit_leaf(leaf);
                 return;

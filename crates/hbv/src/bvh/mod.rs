@@ -12,4 +12,4 @@ pub mod placement;
 mod tree;
 
 pub use cost::{expected_tests, sah_cost, SahWeights};
-pub use tree::{BuildNode, BuildTree, InvariantError, NodeContent, NodeId, TreeShape};
+pub use tree::{BuildNode, BuildTree, InvariantError, NodeContent, NodeId, NodeList, TreeShape};

@@ -486,7 +486,7 @@ impl BuildTree {
             self.grow_from(leaf, &bounds);
             return leaf;
         }
-        let leaf = self.push_leaf(vec![prim], bounds);
+        let leaf = self.push_leaf([prim].as_slice(), bounds);
         self.attach_node(placement, leaf);
         leaf
     }
@@ -499,7 +499,7 @@ impl BuildTree {
             Placement::Root => self.set_root(Some(item)),
             Placement::Pair(sibling) => {
                 let parent = self.node(sibling).parent;
-                let pair = self.push_internal(vec![sibling, item]);
+                let pair = self.push_internal([sibling, item].as_slice());
                 match parent {
                     None => self.set_root(Some(pair)),
                     Some(p) => {

@@ -8,13 +8,18 @@ use crate::geometry::Aabb;
 /// Index of a node in [`BuildTree::nodes`].
 pub type NodeId = u32;
 
+/// A node's children or triangle ids: up to four held in the node itself, more on the heap.
+/// Most nodes of a built tree have two children or a few triangles, so a tree is made, read
+/// and dropped without a heap list per node (the dragon's tree has 1.9 million nodes).
+pub type NodeList = smallvec::SmallVec<[u32; 4]>;
+
 /// What a node holds: child nodes, or triangles.
 #[derive(Clone, Debug, PartialEq)]
 pub enum NodeContent {
     /// Children are other nodes of the tree.
-    Internal(Vec<NodeId>),
+    Internal(NodeList),
     /// Triangle ids (the mesh's face indices).
-    Leaf(Vec<u32>),
+    Leaf(NodeList),
 }
 
 /// One node of a [`BuildTree`].
@@ -139,17 +144,18 @@ impl BuildTree {
     }
 
     /// Adds a leaf holding `prims` with the given bounds; it has no parent until attached.
-    pub fn push_leaf(&mut self, prims: Vec<u32>, bounds: Aabb) -> NodeId {
+    pub fn push_leaf(&mut self, prims: impl Into<NodeList>, bounds: Aabb) -> NodeId {
         self.push(BuildNode {
             bounds,
             parent: None,
-            content: NodeContent::Leaf(prims),
+            content: NodeContent::Leaf(prims.into()),
         })
     }
 
     /// Adds an internal node over `children`, with their union as its bounds, and makes it
     /// their parent.
-    pub fn push_internal(&mut self, children: Vec<NodeId>) -> NodeId {
+    pub fn push_internal(&mut self, children: impl Into<NodeList>) -> NodeId {
+        let children = children.into();
         let bounds = children
             .iter()
             .fold(Aabb::EMPTY, |b, &c| b.union(&self.node(c).bounds));
@@ -193,7 +199,7 @@ impl BuildTree {
         let node = self.node_mut(id);
         node.bounds = Aabb::EMPTY;
         node.parent = None;
-        node.content = NodeContent::Internal(Vec::new());
+        node.content = NodeContent::Internal(NodeList::new());
         self.released.push(id);
     }
 
@@ -238,7 +244,7 @@ impl BuildTree {
                 BuildNode {
                     bounds: Aabb::EMPTY,
                     parent: None,
-                    content: NodeContent::Internal(Vec::new()),
+                    content: NodeContent::Internal(NodeList::new()),
                 },
             );
             let content = match node.content {
@@ -533,7 +539,7 @@ mod tests {
         let (a, b, ab, root) = (0, 1, 3, 4);
         // Make `b` a child of the root and drop `ab` by hand: root [c, b, a].
         if let NodeContent::Internal(children) = &mut t.node_mut(root).content {
-            children.retain(|&c| c != ab);
+            children.retain(|c| *c != ab);
             children.extend([b, a]);
         }
         t.node_mut(a).parent = Some(root);
@@ -566,7 +572,7 @@ mod tests {
     fn validate_finds_a_released_node_in_the_tree() {
         let (mut t, bounds) = three_leaves();
         t.release(0);
-        t.node_mut(0).content = NodeContent::Leaf(vec![0]);
+        t.node_mut(0).content = NodeContent::Leaf([0].as_slice().into());
         t.node_mut(0).parent = Some(3);
         let err = t.validate(&bounds, 1).unwrap_err();
         assert!(err.0.contains("released"), "{err}");

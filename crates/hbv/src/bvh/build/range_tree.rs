@@ -4,7 +4,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::bvh::{BuildTree, NodeId};
+use crate::bvh::{BuildTree, NodeId, NodeList};
 use crate::geometry::Aabb;
 use crate::mesh::TriangleMesh;
 
@@ -135,7 +135,9 @@ impl RangeTree {
                 RangeNode::Leaf { first, count } => {
                     let leaf = &prims[first as usize..(first + count) as usize];
                     let bounds = leaf.iter().fold(Aabb::EMPTY, |b, p| b.union(&p.bounds));
-                    finished.push(tree.push_leaf(leaf.iter().map(|p| p.id).collect(), bounds));
+                    finished.push(
+                        tree.push_leaf(leaf.iter().map(|p| p.id).collect::<NodeList>(), bounds),
+                    );
                 }
                 RangeNode::Internal { left, right } if !children_done => {
                     pending.extend([(slot, true), (right, false), (left, false)]);
@@ -143,7 +145,7 @@ impl RangeTree {
                 RangeNode::Internal { .. } => {
                     let right = finished.pop().expect("right child built");
                     let left = finished.pop().expect("left child built");
-                    finished.push(tree.push_internal(vec![left, right]));
+                    finished.push(tree.push_internal([left, right].as_slice()));
                 }
                 RangeNode::Unused => unreachable!("slot {slot} is reachable but was never set"),
             }

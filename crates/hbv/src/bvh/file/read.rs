@@ -264,11 +264,9 @@ fn read_tree(
     for i in (0..n).rev() {
         let node = &stored[i];
         let id = if node.is_leaf {
-            let prims = entries[node.first..node.first + node.count].to_vec();
-            tree.push_leaf(prims, node.bounds)
+            tree.push_leaf(&entries[node.first..node.first + node.count], node.bounds)
         } else {
-            let children = id_of[node.first..node.first + node.count].to_vec();
-            let id = tree.push_internal(children);
+            let id = tree.push_internal(&id_of[node.first..node.first + node.count]);
             tree.node_mut(id).bounds = node.bounds;
             id
         };

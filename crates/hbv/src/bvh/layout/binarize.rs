@@ -57,7 +57,7 @@ fn copy(tree: &BuildTree, root: NodeId, out: &mut BuildTree) -> NodeId {
             Step::Exit(id) => {
                 let node = tree.node(id);
                 let new = match &node.content {
-                    NodeContent::Leaf(prims) => out.push_leaf(prims.clone(), node.bounds),
+                    NodeContent::Leaf(prims) => out.push_leaf(prims.as_slice(), node.bounds),
                     NodeContent::Internal(children) => {
                         let k = children.len();
                         let copied = done.split_off(done.len() - k);
@@ -90,7 +90,7 @@ fn cluster(out: &mut BuildTree, mut nodes: Vec<NodeId>) -> NodeId {
         let (i, j, _) = best;
         let b = nodes.swap_remove(j);
         let a = nodes[i];
-        nodes[i] = out.push_internal(vec![a, b]);
+        nodes[i] = out.push_internal([a, b].as_slice());
     }
     nodes[0]
 }

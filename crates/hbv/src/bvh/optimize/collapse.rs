@@ -130,7 +130,7 @@ fn collapse_into_leaf(tree: &mut BuildTree, id: NodeId) {
         }
         tree.release(n);
     }
-    tree.node_mut(id).content = NodeContent::Leaf(prims);
+    tree.node_mut(id).content = NodeContent::Leaf(prims.into());
 }
 
 #[cfg(test)]
