@@ -4,14 +4,14 @@ use std::borrow::Cow;
 
 use crate::bvh::tree::{BuildTree, NodeContent, NodeId};
 
-/// `tree` itself when every node reachable from its root is a leaf or has exactly two children
-/// (the top-down builders' trees), else [`binarize`]'s copy: the binary tree the layouts start
-/// from, without copying one that is binary already (a copy of the dragon's 1.9 million nodes,
-/// a vector each, took about a tenth of the wide layout's making).
+/// `tree` itself when every node of its arena is a leaf or has exactly two children (the
+/// top-down builders' trees), else [`binarize`]'s copy: the binary tree the layouts start from,
+/// without copying one that is binary already (the copy of the dragon's 1.9 million nodes took
+/// about a tenth of the wide layout's making).
 pub(crate) fn binary_form(tree: &BuildTree) -> Cow<'_, BuildTree> {
-    // Every node of the arena, in memory order (a walk from the root reads them in a scattered
-    // order, and took as long as the rest of this check ten times over): released nodes too,
-    // which can only make a binary tree look n-ary, and then it is copied, as before.
+    // Every node of the arena in memory order, where a walk from the root reads them in a
+    // scattered order: released nodes too (unreachable, and empty), which can only make a
+    // binary tree look n-ary, and then it is copied, as any n-ary tree is.
     let binary = tree
         .nodes()
         .iter()
