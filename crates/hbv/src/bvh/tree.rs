@@ -288,6 +288,7 @@ impl BuildTree {
         prims.clear();
         let n = self.node(node);
         if n.is_leaf() {
+            // Most calls, from the layouts: no list of nodes to visit.
             prims.extend_from_slice(n.prims());
             return;
         }
@@ -313,14 +314,13 @@ impl BuildTree {
             NodeContent::Leaf(p) => p.len() as u32,
             NodeContent::Internal(c) => c.iter().map(|&c| counts[c as usize]).sum(),
         };
-        let mut children_first = true;
-        for (id, node) in self.nodes.iter().enumerate() {
-            children_first &= node.children().iter().all(|&c| (c as usize) < id);
-            if !children_first {
-                break;
+        let children_first = self.nodes.iter().enumerate().all(|(id, node)| {
+            let first = node.children().iter().all(|&c| (c as usize) < id);
+            if first {
+                counts[id] = count(&counts, node);
             }
-            counts[id] = count(&counts, node);
-        }
+            first
+        });
         if children_first {
             return counts;
         }
