@@ -110,7 +110,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let load_seconds = start.elapsed().as_secs_f64();
         assert_eq!(loaded.tree.nodes().len(), tree.nodes().len());
         println!(
-            "file      {path}: {:.1} B/triangle, written in {write_seconds:.1} s, loaded (mapped, checked) in {load_seconds:.1} s",
+            "file      {path}: {:.1} B/triangle, written in {write_seconds:.1} s, read back and checked in {load_seconds:.1} s",
             bytes as f64 / n as f64
         );
     }
