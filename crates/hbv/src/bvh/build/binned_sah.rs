@@ -223,9 +223,12 @@ impl BinGrid {
     /// they agree exactly.
     #[inline]
     fn bins_of(&self, c: Vec3A) -> [usize; 3] {
-        // `as` saturates: rounding noise below `lo` goes to bin 0.
-        let k = ((c - self.lo) * self.scale).as_uvec3();
-        k.to_array().map(|k| (k as usize).min(self.bins - 1))
+        let x = (c - self.lo) * self.scale;
+        // Clamped to `[0, bins - 1]` before the conversion, NaN to 0 (`x > 0` is false):
+        // rounding noise below `lo` goes to bin 0, the far end of the last bin stays in it.
+        let last = Vec3A::splat((self.bins - 1) as f32);
+        let x = Vec3A::select(x.cmpgt(Vec3A::ZERO), x, Vec3A::ZERO).min(last);
+        truncate_lanes(x)
     }
 
     /// Whether centre `c` is in a bin below `bin` on `AXIS`: `bins_of(c)[AXIS] < bin`, without
@@ -237,6 +240,26 @@ impl BinGrid {
 
     fn can_split(&self, axis: usize) -> bool {
         self.scale[axis] > 0.0
+    }
+}
+
+/// `[x, y, z]` of `x` truncated to integers, for lanes in `[0, 2^31)`: one SSE2 conversion of
+/// all three on x86_64 (`as` per lane checks each for saturation).
+#[inline]
+fn truncate_lanes(x: Vec3A) -> [usize; 3] {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{__m128, _mm_cvttps_epi32, _mm_storeu_si128};
+        let mut k = [0i32; 4];
+        // SAFETY: SSE2 is part of the x86_64 baseline; the store writes the 16 bytes of `k`.
+        unsafe {
+            _mm_storeu_si128(k.as_mut_ptr().cast(), _mm_cvttps_epi32(__m128::from(x)));
+        }
+        [k[0] as usize, k[1] as usize, k[2] as usize]
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        x.to_array().map(|x| x as usize)
     }
 }
 
@@ -563,6 +586,42 @@ mod tests {
             assert!(p[k..].iter().all(|q| q.centroid().x >= threshold));
             assert_eq!(left, bounds_and_centroid_bounds(&p[..k]));
             assert_eq!(right, bounds_and_centroid_bounds(&p[k..]));
+        }
+    }
+
+    proptest::proptest! {
+        #![proptest_config(crate::proptest_cases::cases(2000))]
+
+        /// Binning and partition put every centre on the same side of every boundary, at any
+        /// scale, for centres inside the node's centroid box, on its faces, and just outside it
+        /// (rounding noise), with the clamp at both ends.
+        #[test]
+        fn binning_and_partition_agree(
+            (lo, extent) in (-1e6f32..1e6, proptest::prop_oneof![
+                proptest::prelude::Just(0.0f32), 1e-30f32..1e-20, 1e-3f32..1e3, 1e20f32..1e30
+            ]),
+            at in proptest::collection::vec(-0.01f32..1.01, 3),
+            bins in 2usize..=MAX_BINS,
+            face in 0usize..3,
+        ) {
+            let lo_v = Vec3::splat(lo);
+            let hi_v = Vec3::new(lo + extent, lo + 2.0 * extent, lo + 0.5 * extent);
+            let grid = BinGrid::new(&Aabb::new(lo_v, hi_v), bins);
+            let mut c = lo_v + (hi_v - lo_v) * Vec3::from_slice(&at);
+            // One coordinate exactly on the box's low or high face.
+            c[face] = if at[face] < 0.5 { lo_v[face] } else { hi_v[face] };
+            let k = grid.bins_of(c.into());
+            for (axis, &k) in k.iter().enumerate() {
+                proptest::prop_assert!(k < grid.bins);
+                for bin in 1..grid.bins {
+                    let below = match axis {
+                        0 => grid.is_below::<0>(c.into(), bin),
+                        1 => grid.is_below::<1>(c.into(), bin),
+                        _ => grid.is_below::<2>(c.into(), bin),
+                    };
+                    proptest::prop_assert_eq!(k < bin, below, "axis {} bin {}", axis, bin);
+                }
+            }
         }
     }
 }
