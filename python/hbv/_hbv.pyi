@@ -61,8 +61,10 @@ class BVH:
 
     The tree is built at once (``stats()["build_seconds"]``); what each kind of query walks is
     made from it on that kind's first call: the layout on the first ``intersect`` or
-    ``occluded``, the wide-8 layout on the first ``intersect_all``, ``count`` or ``contains``,
-    the nearest-point tree on the first ``closest_point`` or ``signed_distance``.
+    ``occluded``, the wide-8 layout on the first ``intersect_all``, ``count`` or ``contains``.
+    ``closest_point`` and ``signed_distance`` walk the tree itself for their first points
+    (32 √triangles of them, all calls together), then make a nearest-point tree,
+    faster per point, in the call that would pass that count; the answers are the same.
     """
 
     def __init__(

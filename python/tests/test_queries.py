@@ -283,6 +283,17 @@ def test_closest_point_is_the_same_on_any_tree_and_thread_count():
         got = bvh.closest_point(points, threads=threads)
         for key in ("point", "distance", "prim", "u", "v"):
             np.testing.assert_array_equal(got[key], want[key], err_msg=key)
+    # A fresh BVH walks its own tree for its first points (32 √triangles: 1,144 here),
+    # then makes the search tree in the call that would pass that count: calls of 40 points
+    # (on one thread and on all), then the rest; the same answers throughout.
+    fresh = hbv.BVH(mesh)
+    for start, threads in [(0, 1), (40, None), (80, 1), (120, None)]:
+        got = fresh.closest_point(points[start:start + 40], threads=threads)
+        for key in ("point", "distance", "prim", "u", "v"):
+            np.testing.assert_array_equal(got[key], want[key][start:start + 40], err_msg=key)
+    got = fresh.closest_point(points)
+    for key in ("point", "distance", "prim", "u", "v"):
+        np.testing.assert_array_equal(got[key], want[key], err_msg=key)
     tris = triangles_of(mesh.vertices, f)
     for i in rng.choice(len(points), 100, replace=False):
         dist = np.linalg.norm(closest_on_triangles(points[i], tris) - points[i], axis=1)

@@ -9,7 +9,9 @@ use hbv::bvh::file::BvhFile;
 use hbv::bvh::layout::Wide8Layout;
 use hbv::bvh::optimize::ReinsertionOptimizer;
 use hbv::bvh::{expected_tests, sah_cost, BuildTree, SahWeights};
-use hbv::proximity::{ClosestPointColumns, ClosestPointTree, FlatPoints, QueryPoints};
+use hbv::proximity::{
+    ClosestPointColumns, ClosestPointTree, ClosestPointsOnDemand, FlatPoints, QueryPoints,
+};
 use hbv::{Accelerator, TriangleMesh};
 use numpy::{IntoPyArray, PyArray1, PyArrayMethods};
 use pyo3::exceptions::PyValueError;
@@ -40,8 +42,9 @@ use crate::thread_pool::{one_thread, run_here_or_on_threads, ThreadCount};
 ///
 /// The tree is built here (`stats()["build_seconds"]`); what each kind of query walks is made
 /// from it on that kind's first call: the layout on the first intersect or occluded, the wide-8
-/// layout on the first intersect_all, count or contains, the nearest-point tree on the first
-/// closest_point or signed_distance.
+/// layout on the first intersect_all, count or contains. closest_point and signed_distance walk
+/// the tree itself for their first 32 √triangles points, then make a nearest-point tree in
+/// the call that would pass that count.
 #[pyclass(name = "BVH", module = "hbv", frozen)]
 pub struct PyBvh {
     mesh: Py<PyMesh>,
@@ -55,25 +58,27 @@ pub struct PyBvh {
     /// The wide-8 layout of the same tree: the all-hits queries' structure (made on first use;
     /// `accel` too when it is the layout).
     wide: OnceLock<Arc<Wide8Layout>>,
-    /// The nearest-point search tree (built on first use).
-    closest: OnceLock<ClosestPointTree>,
+    /// The nearest-point queries: walks of `tree` at first, the search tree once it pays
+    /// (`ClosestPointsOnDemand`).
+    closest: ClosestPointsOnDemand,
     build_seconds: f64,
     /// The settings line saved with the tree (`hbv build`'s words), or read from its file.
     settings: String,
 }
 
-/// `tree`'s nearest points of `points` into `columns`: on the calling thread alone (`here`,
-/// `threads=1`) or shared with the current pool's threads.
+/// The nearest points of `points` on `bvh`'s mesh into `columns`: on the calling thread alone
+/// (`here`, `threads=1`) or shared with the current pool's threads.
 fn answer_into<P: QueryPoints + ?Sized>(
-    tree: &ClosestPointTree,
+    bvh: &PyBvh,
     points: &P,
     columns: ClosestPointColumns<'_>,
     here: bool,
 ) {
+    let (closest, tree, mesh) = (&bvh.closest, &bvh.tree, &*bvh.triangles);
     if here {
-        tree.closest_points_into_here(points, columns);
+        closest.closest_points_into_here(tree, mesh, points, columns);
     } else {
-        tree.closest_points_into(points, columns);
+        closest.closest_points_into(tree, mesh, points, columns);
     }
 }
 
@@ -100,7 +105,7 @@ impl PyBvh {
             tree,
             accel: OnceLock::new(),
             wide: OnceLock::new(),
-            closest: OnceLock::new(),
+            closest: ClosestPointsOnDemand::new(),
             build_seconds,
             settings,
         }
@@ -129,11 +134,6 @@ impl PyBvh {
             Some(accel) => &**accel,
             None => &**py.detach(|| self.accel.get_or_init(laid_out)),
         }
-    }
-
-    fn closest_tree(&self) -> &ClosestPointTree {
-        self.closest
-            .get_or_init(|| ClosestPointTree::new(&self.tree, &self.triangles))
     }
 }
 
@@ -272,10 +272,13 @@ impl PyBvh {
     /// (1-u-v) p0 + u p1 + v p2). Exact in f64 (equal to a float64 brute force); ties go to the
     /// smallest triangle id. Non-finite points (or an empty mesh) give NaN, inf, -1, 0, 0.
     ///
-    /// The first call makes the search tree. On meshes of few large triangles (rooms, boxes) a
-    /// candidate grid that answers most points from a short list is made once about 130,000
-    /// points have been asked for (the call that reaches it included), when its cost has been
-    /// paid back; the answers are the same before and after.
+    /// The first 32 √triangles points (all calls together) are answered by walking the BVH's
+    /// own tree; the call that would pass that count makes a search tree,
+    /// faster per point, and every later call uses it: a few points never pay for the search
+    /// tree, many pay for it once. On meshes of few large triangles (rooms, boxes) a candidate
+    /// grid that answers most points from a short list is made once about 130,000 points have
+    /// been asked of the search tree (the call that reaches it included), when its cost has
+    /// been paid back. The answers are the same whichever answers them.
     #[pyo3(signature = (points, threads=None))]
     fn closest_point<'py>(
         &self,
@@ -301,10 +304,9 @@ impl PyBvh {
                     u: &mut u,
                     v: &mut v,
                 };
-                let tree = self.closest_tree();
                 match points {
-                    FloatSlice::F32(values) => answer_into(tree, &rows_of(values), columns, here),
-                    FloatSlice::F64(values) => answer_into(tree, &rows_of(values), columns, here),
+                    FloatSlice::F32(values) => answer_into(self, &rows_of(values), columns, here),
+                    FloatSlice::F64(values) => answer_into(self, &rows_of(values), columns, here),
                 }
             };
             run_here_or_on_threads(here || n <= ClosestPointTree::RUN, threads, answer)

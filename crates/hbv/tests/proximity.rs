@@ -10,8 +10,9 @@ use hbv::geometry::Aabb;
 use hbv::glam::{DVec3, Vec3};
 use hbv::mesh::procedural::{icosphere, torus};
 use hbv::proximity::{
-    closest_point_brute_force, contains, CandidateGridConfig, ClosestPoint, ClosestPointColumns,
-    ClosestPointTree, FlatPoints, QueryPoints, SearchTally, SearchTreeConfig,
+    closest_point_brute_force, contains, BuildTreeSearch, CandidateGridConfig, ClosestPoint,
+    ClosestPointColumns, ClosestPointTree, ClosestPointsOnDemand, FlatPoints, QueryPoints,
+    SearchTally, SearchTreeConfig,
 };
 use hbv::{BruteForce, TriangleMesh};
 use proptest::prelude::*;
@@ -150,10 +151,14 @@ fn assert_closest_points_agree_with(
         ("binned-sah", sah, product_grid),
     ] {
         let search = ClosestPointTree::with_grid(&tree, mesh, config, grid);
+        let walk = BuildTreeSearch::new(&tree, mesh);
         for (i, p) in points.iter().enumerate() {
             let want = closest_point_brute_force(mesh, p.as_dvec3());
             let got = search.closest_point(*p);
             prop_assert_eq!(want, got, "{}: point {} {:?}", name, i, p);
+            // The builder's own tree, walked as it is (a fresh BVH's first queries).
+            let walked = walk.closest_point(p.as_dvec3());
+            prop_assert_eq!(want, walked, "{} walk: point {} {:?}", name, i, p);
         }
         // The batch form (Morton order, each search seeded with its neighbour's triangle):
         // the same answers.
@@ -199,6 +204,31 @@ fn assert_closest_points_agree_with(
             // and several: the same rows.
             let flat32: Vec<f32> = long.iter().flat_map(|p| p.as_vec3().to_array()).collect();
             let flat64: Vec<f64> = long.iter().flat_map(|p| p.to_array()).collect();
+            // On demand: walks for the first `n` points (in one run, then in several: the
+            // limit is `n + RUN + 1 + n`), then the search tree, made by the batch that passes
+            // the limit.
+            let on_demand = ClosestPointsOnDemand::with_walk_limit(long.len() + n);
+            let by_walks = on_demand_rows(
+                &on_demand,
+                &tree,
+                mesh,
+                &FlatPoints::new(&flat32[..3 * n]).unwrap(),
+            );
+            let long_walks = on_demand_rows(&on_demand, &tree, mesh, long.as_slice());
+            prop_assert!(
+                on_demand.search_tree().is_none(),
+                "{}: made too early",
+                name
+            );
+            let by_search = on_demand_rows(&on_demand, &tree, mesh, long.as_slice());
+            prop_assert!(on_demand.search_tree().is_some(), "{}: never made", name);
+            for (j, row) in by_walks.into_iter().enumerate() {
+                prop_assert_eq!(row, rows[j], "{} walked rows: row {}", name, j);
+            }
+            for (j, (walked, searched)) in long_walks.into_iter().zip(by_search).enumerate() {
+                prop_assert_eq!(walked, rows[j % n], "{} walked long rows: row {}", name, j);
+                prop_assert_eq!(searched, rows[j % n], "{} on-demand rows: row {}", name, j);
+            }
             for (form, got) in [
                 (
                     "f32",
@@ -228,6 +258,30 @@ fn assert_closest_points_agree_with(
         }
     }
     Ok(())
+}
+
+/// The rows `on_demand` answers for `points` (flat f32 coordinates or points) on `mesh`, whose
+/// tree is `tree`, on the pool's threads.
+fn on_demand_rows<P: QueryPoints + ?Sized>(
+    on_demand: &ClosestPointsOnDemand,
+    tree: &BuildTree,
+    mesh: &TriangleMesh,
+    points: &P,
+) -> Vec<RowBits> {
+    let n = points.count();
+    let (mut q, mut d, mut k) = (vec![[0.0; 3]; n], vec![0.0; n], vec![0i64; n]);
+    let (mut u, mut v) = (vec![0.0; n], vec![0.0; n]);
+    let columns = ClosestPointColumns {
+        point: &mut q,
+        distance: &mut d,
+        prim: &mut k,
+        u: &mut u,
+        v: &mut v,
+    };
+    on_demand.closest_points_into(tree, mesh, points, columns);
+    (0..n)
+        .map(|i| row_bits((q[i], d[i], k[i], u[i], v[i])))
+        .collect()
 }
 
 /// A row of `closest_points_into`'s columns (point, distance, prim, u, v), floats as bits.

@@ -96,7 +96,7 @@ pub struct ClosestPointColumns<'a> {
 }
 
 /// One run's slices of the five columns.
-type ColumnRun<'r> = (
+pub(super) type ColumnRun<'r> = (
     &'r mut [[f64; 3]],
     &'r mut [f64],
     &'r mut [i64],
@@ -107,7 +107,7 @@ type ColumnRun<'r> = (
 /// Points `first..first + len` of `points` (`len` at most a run) in f64, on the stack: no
 /// batch-sized copy.
 #[inline]
-fn run_of<P: QueryPoints + ?Sized>(
+pub(super) fn run_of<P: QueryPoints + ?Sized>(
     points: &P,
     first: usize,
     len: usize,
@@ -121,7 +121,11 @@ fn run_of<P: QueryPoints + ?Sized>(
 
 /// Writes answer `found` as row `k` of the columns.
 #[inline]
-fn write_row(found: Option<ClosestPoint>, k: usize, (point, distance, prim, u, v): ColumnRun<'_>) {
+pub(super) fn write_row(
+    found: Option<ClosestPoint>,
+    k: usize,
+    (point, distance, prim, u, v): ColumnRun<'_>,
+) {
     match found {
         Some(c) => {
             point[k] = c.point.to_array();
@@ -142,7 +146,7 @@ fn write_row(found: Option<ClosestPoint>, k: usize, (point, distance, prim, u, v
 
 /// Calls `f(r, rows of run r)` for every run of [`ClosestPointTree::RUN`] rows of `columns`
 /// (the last one shorter), shared out as `threads` says (module `batch_threads`).
-fn for_each_column_run(
+pub(super) fn for_each_column_run(
     threads: Threads,
     (point, distance, prim, u, v): ColumnRun<'_>,
     f: impl Fn(usize, ColumnRun<'_>) + Sync,

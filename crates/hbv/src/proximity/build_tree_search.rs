@@ -1,0 +1,189 @@
+//! The nearest surface point found by walking a builder's tree as it is ([`BuildTree`]), with no
+//! search tree made first: what a fresh BVH answers its first nearest-point queries with, until
+//! the [`ClosestPointTree`](super::ClosestPointTree) (faster per query, but as dear to make as
+//! thousands of these walks) has paid for itself (module `on_demand`).
+//!
+//! **Search** (branch and bound, as in [`ClosestPointTree`](super::ClosestPointTree), Larsen et
+//! al. 1999): keep the best squared distance `d²` so far and its [`prune_threshold`]; at a node,
+//! bound each child's box distance `Σ_axis max(min - p, 0, p - max)²` from below in f32
+//! (`box_bound`: conservative for the f64 point), and visit those within the threshold, the
+//! nearest first; in a leaf, decide every triangle with [`closest_point_on_triangle`] in f64.
+//! A box is pruned only when no triangle in it can have a computed distance within the best's,
+//! so the answer is [`closest_point_brute_force`](super::closest_point_brute_force)'s, ties
+//! included (the smallest face id among equal distances).
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::box_bound::{prune_threshold, rounding_margin, Boxes, PointBracket};
+use super::closest_point::{
+    for_each_column_run, run_of, write_row, ClosestPoint, ClosestPointColumns, ClosestPointTree,
+};
+use super::point_triangle::closest_point_on_triangle;
+use super::query_points::QueryPoints;
+use crate::batch_threads::Threads;
+use crate::bvh::{BuildTree, NodeContent, NodeId};
+use crate::geometry::Aabb;
+use crate::mesh::TriangleMesh;
+
+/// A builder's tree and its mesh, searched for nearest points in place.
+#[derive(Clone, Copy, Debug)]
+pub struct BuildTreeSearch<'a> {
+    tree: &'a BuildTree,
+    mesh: &'a TriangleMesh,
+    /// The largest coordinate magnitude of the mesh (the rounding margin's scale).
+    mesh_scale: f64,
+}
+
+/// One pending node of a walk: its box's lower bound and its id.
+type Pending = (f32, NodeId);
+
+impl<'a> BuildTreeSearch<'a> {
+    /// Searches `tree`, built over `mesh` by any builder.
+    pub fn new(tree: &'a BuildTree, mesh: &'a TriangleMesh) -> Self {
+        let b = mesh.bounds();
+        let mesh_scale = if mesh.triangle_count() == 0 {
+            0.0
+        } else {
+            b.min.abs().max(b.max.abs()).max_element() as f64
+        };
+        Self {
+            tree,
+            mesh,
+            mesh_scale,
+        }
+    }
+
+    /// The nearest surface point to `p`; `None` for a point that is not finite or an empty
+    /// tree.
+    pub fn closest_point(&self, p: DVec3) -> Option<ClosestPoint> {
+        self.closest_point_with(p, &mut Vec::new())
+    }
+
+    /// The nearest surface point of each of `points`, on the current rayon pool.
+    pub fn closest_points(&self, points: &[DVec3]) -> Vec<Option<ClosestPoint>> {
+        points
+            .par_iter()
+            .with_min_len(64)
+            .map_init(Vec::new, |stack, &p| self.closest_point_with(p, stack))
+            .collect()
+    }
+
+    /// The nearest surface points of `points` written column by column into `out`, as
+    /// [`ClosestPointTree::closest_points_into`] writes them (a point without an answer gets
+    /// NaN, +∞, -1, 0, 0), runs of points shared out as `threads` says. Panics if a column's
+    /// length is not the number of points.
+    pub(super) fn closest_points_into_with<P: QueryPoints + ?Sized>(
+        &self,
+        points: &P,
+        out: ClosestPointColumns<'_>,
+        threads: Threads,
+    ) {
+        const RUN: usize = ClosestPointTree::RUN;
+        let n = points.count();
+        let ClosestPointColumns {
+            point,
+            distance,
+            prim,
+            u,
+            v,
+        } = out;
+        assert!(
+            [point.len(), distance.len(), prim.len(), u.len(), v.len()] == [n; 5],
+            "closest_points_into: every column must have one entry per point"
+        );
+        let columns = (point, distance, prim, u, v);
+        for_each_column_run(threads, columns, |r, (point, distance, prim, u, v)| {
+            let len = point.len();
+            let run = run_of(points, r * RUN, len);
+            let mut stack = Vec::new();
+            for (k, &p) in run[..len].iter().enumerate() {
+                let found = self.closest_point_with(p, &mut stack);
+                write_row(
+                    found,
+                    k,
+                    (&mut *point, &mut *distance, &mut *prim, &mut *u, &mut *v),
+                );
+            }
+        });
+    }
+
+    /// [`BuildTreeSearch::closest_point`] with `stack` as scratch space, reused between
+    /// searches.
+    fn closest_point_with(&self, p: DVec3, stack: &mut Vec<Pending>) -> Option<ClosestPoint> {
+        let root = self.tree.root()?;
+        if !p.is_finite() {
+            return None;
+        }
+        let bracket = PointBracket::new(p);
+        let delta = rounding_margin(p, self.mesh_scale);
+        let mut best: Option<(ClosestPoint, f64)> = None;
+        let mut threshold = f32::INFINITY;
+        stack.clear();
+        stack.push((0.0, root));
+        while let Some((bound, id)) = stack.pop() {
+            if bound > threshold {
+                continue;
+            }
+            match &self.tree.node(id).content {
+                NodeContent::Leaf(prims) => {
+                    for &prim in prims.iter() {
+                        let t = self.mesh.triangle(prim as usize);
+                        if t.is_degenerate() {
+                            continue;
+                        }
+                        let q = closest_point_on_triangle(
+                            p,
+                            t.p0.as_dvec3(),
+                            t.p1.as_dvec3(),
+                            t.p2.as_dvec3(),
+                        );
+                        let d2 = (p - q.point).length_squared();
+                        let beats = match &best {
+                            None => true,
+                            Some((b, best_d2)) => {
+                                d2 < *best_d2 || (d2 == *best_d2 && prim < b.prim)
+                            }
+                        };
+                        if beats {
+                            let answer = ClosestPoint {
+                                point: q.point,
+                                distance: 0.0,
+                                prim,
+                                u: q.u,
+                                v: q.v,
+                            };
+                            best = Some((answer, d2));
+                            threshold = prune_threshold(d2, delta);
+                        }
+                    }
+                }
+                NodeContent::Internal(children) => {
+                    // Pushed farthest first, so that the nearest is searched next.
+                    let first = stack.len();
+                    for &child in children.iter() {
+                        let bound = box_bound(&self.tree.node(child).bounds, &bracket);
+                        if bound <= threshold {
+                            stack.push((bound, child));
+                        }
+                    }
+                    stack[first..].sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
+                }
+            }
+        }
+        best.map(|(answer, d2)| ClosestPoint {
+            distance: d2.sqrt(),
+            ..answer
+        })
+    }
+}
+
+/// [`Boxes::distance_squared_lower_bounds`] of one box.
+#[inline]
+fn box_bound(b: &Aabb, bracket: &PointBracket) -> f32 {
+    let boxes = Boxes::<1> {
+        min: [[b.min.x], [b.min.y], [b.min.z]],
+        max: [[b.max.x], [b.max.y], [b.max.z]],
+    };
+    boxes.distance_squared_lower_bounds(bracket)[0]
+}

@@ -1,0 +1,147 @@
+//! Nearest-point queries on a fresh BVH that make the [`ClosestPointTree`] only once it has
+//! paid for itself: until then each point is answered by walking the builder's tree as it is
+//! ([`BuildTreeSearch`]).
+//!
+//! **When to make the tree** (the ski-rental argument, as for the candidate grid,
+//! [`CandidateGridConfig::payback`](super::CandidateGridConfig::payback)): the search tree
+//! costs as much to make as `make / (walk - search)` points cost more by walks than by it, the
+//! break-even count. Measured on two cores for points uniform around the shared meshes
+//! (`examples/on_demand_payback.rs`, BENCHMARKS.md "Nearest points on a fresh BVH"), it grows
+//! about as the square root of the triangle count (the making is linear in it, a walk's cost
+//! per point grows about as its square root): 2,800–3,400 points on spot and the teapot (about
+//! 6,000 triangles), 6,500–7,900 on the bunny (69,451), 10,500–13,600 on igea (268,686), 31,000
+//! on the dragon (871,414), in two runs. [`ClosestPointsOnDemand::payback`] is `32 √triangles`,
+//! within 0.7–1.6× of each. The first `payback` points (all batches together) are walked, and the batch that would
+//! pass that count makes the tree and is answered with it: a caller asking for few points never
+//! pays for the tree, and one asking for many pays about twice the better choice in hindsight at
+//! most. Both answer exactly as
+//! [`closest_point_brute_force`](super::closest_point_brute_force), so the answers do not
+//! depend on which one gave them.
+
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::OnceLock;
+
+use glam::DVec3;
+
+use super::build_tree_search::BuildTreeSearch;
+use super::closest_point::{ClosestPoint, ClosestPointColumns, ClosestPointTree};
+use super::query_points::QueryPoints;
+use crate::batch_threads::Threads;
+use crate::bvh::BuildTree;
+use crate::mesh::TriangleMesh;
+
+/// The nearest-point search of one [`BuildTree`] and its mesh, with the [`ClosestPointTree`]
+/// made on demand (module notes). The tree and mesh are passed to each call; they must be the
+/// same every time.
+#[derive(Debug, Default)]
+pub struct ClosestPointsOnDemand {
+    search: OnceLock<ClosestPointTree>,
+    /// Points answered by walks so far.
+    walked: AtomicUsize,
+    /// How many points may be walked; `None`: [`ClosestPointsOnDemand::payback`] of the mesh.
+    walk_limit: Option<usize>,
+}
+
+impl ClosestPointsOnDemand {
+    /// Nothing made yet; the search tree is made once [`ClosestPointsOnDemand::payback`] points
+    /// have been asked for.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Nothing made yet; the search tree is made once `points` points have been asked for (0:
+    /// on the first batch that is not empty).
+    pub fn with_walk_limit(points: usize) -> Self {
+        Self {
+            walk_limit: Some(points),
+            ..Self::default()
+        }
+    }
+
+    /// How many points, all batches together, are answered by walking a tree of `triangles`
+    /// before the search tree is made (by default).
+    pub fn payback(triangles: usize) -> usize {
+        (32.0 * (triangles as f64).sqrt()) as usize
+    }
+
+    /// The search tree, if it has been made.
+    pub fn search_tree(&self) -> Option<&ClosestPointTree> {
+        self.search.get()
+    }
+
+    /// The nearest surface point of each of `points` on `mesh`, whose tree is `tree`: by walks
+    /// of `tree` while they have not cost as much as making the search tree, by the search
+    /// tree (made now if need be) after; on the current rayon pool.
+    pub fn closest_points(
+        &self,
+        tree: &BuildTree,
+        mesh: &TriangleMesh,
+        points: &[DVec3],
+    ) -> Vec<Option<ClosestPoint>> {
+        if self.search.get().is_none() && self.walk_allowed(points.len(), mesh.triangle_count()) {
+            return BuildTreeSearch::new(tree, mesh).closest_points(points);
+        }
+        self.search_tree_of(tree, mesh).closest_points(points)
+    }
+
+    /// The nearest points of `points` on `mesh` written column by column into `out`, as
+    /// [`ClosestPointTree::closest_points_into`] writes them: by walks of `tree` while they
+    /// have not cost as much as making the search tree, by the search tree (made now if need
+    /// be) after. The calling thread and the current rayon pool's threads share the work.
+    pub fn closest_points_into<P: QueryPoints + ?Sized>(
+        &self,
+        tree: &BuildTree,
+        mesh: &TriangleMesh,
+        points: &P,
+        out: ClosestPointColumns<'_>,
+    ) {
+        self.closest_points_into_with(tree, mesh, points, out, Threads::Pool);
+    }
+
+    /// [`ClosestPointsOnDemand::closest_points_into`] on the calling thread alone.
+    pub fn closest_points_into_here<P: QueryPoints + ?Sized>(
+        &self,
+        tree: &BuildTree,
+        mesh: &TriangleMesh,
+        points: &P,
+        out: ClosestPointColumns<'_>,
+    ) {
+        self.closest_points_into_with(tree, mesh, points, out, Threads::Here);
+    }
+
+    fn closest_points_into_with<P: QueryPoints + ?Sized>(
+        &self,
+        tree: &BuildTree,
+        mesh: &TriangleMesh,
+        points: &P,
+        out: ClosestPointColumns<'_>,
+        threads: Threads,
+    ) {
+        let n = points.count();
+        if self.search.get().is_none() && self.walk_allowed(n, mesh.triangle_count()) {
+            BuildTreeSearch::new(tree, mesh).closest_points_into_with(points, out, threads);
+            return;
+        }
+        let search = self.search_tree_of(tree, mesh);
+        match threads {
+            Threads::Pool => search.closest_points_into(points, out),
+            Threads::Here => search.closest_points_into_here(points, out),
+        }
+    }
+
+    /// The search tree, made now if it has not been.
+    fn search_tree_of(&self, tree: &BuildTree, mesh: &TriangleMesh) -> &ClosestPointTree {
+        self.search
+            .get_or_init(|| ClosestPointTree::new(tree, mesh))
+    }
+
+    /// Whether `n` more points may be walked (and, if so, counts them as walked).
+    fn walk_allowed(&self, n: usize, triangles: usize) -> bool {
+        let limit = self.walk_limit.unwrap_or(Self::payback(triangles));
+        self.walked
+            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |walked| {
+                (walked + n <= limit).then_some(walked + n)
+            })
+            .is_ok()
+    }
+}
