@@ -50,7 +50,7 @@ pub struct PyBvh {
     mesh: Py<PyMesh>,
     triangles: Arc<TriangleMesh>,
     options: BuildOptions,
-    tree: BuildTree,
+    tree: Arc<BuildTree>,
     /// The tree laid out as `options.layout` says, for the closest- and any-hit queries: made
     /// on the first of them, so that a BVH asked only for nearest points never lays out a ray
     /// structure (the dragon's wide-8 layout takes a third of its build's time).
@@ -74,11 +74,10 @@ fn answer_into<P: QueryPoints + ?Sized>(
     columns: ClosestPointColumns<'_>,
     here: bool,
 ) {
-    let (closest, tree, mesh) = (&bvh.closest, &bvh.tree, &*bvh.triangles);
     if here {
-        closest.closest_points_into_here(tree, mesh, points, columns);
+        bvh.closest.closest_points_into_here(points, columns);
     } else {
-        closest.closest_points_into(tree, mesh, points, columns);
+        bvh.closest.closest_points_into(points, columns);
     }
 }
 
@@ -98,14 +97,15 @@ impl PyBvh {
         build_seconds: f64,
         settings: String,
     ) -> Self {
+        let tree = Arc::new(tree);
         Self {
             mesh,
+            closest: ClosestPointsOnDemand::new(tree.clone(), triangles.clone()),
             triangles,
             options,
             tree,
             accel: OnceLock::new(),
             wide: OnceLock::new(),
-            closest: ClosestPointsOnDemand::new(),
             build_seconds,
             settings,
         }
@@ -115,7 +115,7 @@ impl PyBvh {
     pub fn to_file(&self) -> BvhFile {
         BvhFile {
             mesh: (*self.triangles).clone(),
-            tree: self.tree.clone(),
+            tree: (*self.tree).clone(),
             settings: self.settings.clone(),
         }
     }

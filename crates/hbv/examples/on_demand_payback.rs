@@ -12,6 +12,7 @@
 //! Medians of `--runs` rounds (default 5); the search's cost per point is taken on a batch of
 //! `--points` (default 65,536) after the tree is made, the walk's on the same batch.
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use hbv::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
@@ -38,8 +39,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     println!("| mesh | triangles | search tree ms | walk µs/point | search µs/point | break-even points | payback |");
     println!("| --- | ---: | ---: | ---: | ---: | ---: | ---: |");
     for path in paths {
-        let mesh = TriangleMesh::load(&path)?;
-        let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+        let mesh = Arc::new(TriangleMesh::load(&path)?);
+        let tree = Arc::new(BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh));
         let b = mesh.bounds();
         let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
         let pad = 0.1 * (hi - lo);
@@ -59,9 +60,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             let found = searched.closest_points(&points);
             search.push(start.elapsed().as_secs_f64() / n as f64);
             // Walks only: a limit no batch reaches.
-            let walker = ClosestPointsOnDemand::with_walk_limit(usize::MAX);
+            let walker =
+                ClosestPointsOnDemand::with_walk_limit(tree.clone(), mesh.clone(), usize::MAX);
             let start = Instant::now();
-            let walked = walker.closest_points(&tree, &mesh, &points);
+            let walked = walker.closest_points(&points);
             walk.push(start.elapsed().as_secs_f64() / n as f64);
             assert!(walker.search_tree().is_none());
             assert_eq!(walked, found, "{path}: walks and searches disagree");

@@ -9,6 +9,8 @@ use hbv::bvh::BuildTree;
 use hbv::geometry::Aabb;
 use hbv::glam::{DVec3, Vec3};
 use hbv::mesh::procedural::{icosphere, torus};
+use std::sync::Arc;
+
 use hbv::proximity::{
     closest_point_brute_force, contains, BuildTreeSearch, CandidateGridConfig, ClosestPoint,
     ClosestPointColumns, ClosestPointTree, ClosestPointsOnDemand, FlatPoints, QueryPoints,
@@ -207,20 +209,19 @@ fn assert_closest_points_agree_with(
             // On demand: walks for the first `n` points (in one run, then in several: the
             // limit is `n + RUN + 1 + n`), then the search tree, made by the batch that passes
             // the limit.
-            let on_demand = ClosestPointsOnDemand::with_walk_limit(long.len() + n);
-            let by_walks = on_demand_rows(
-                &on_demand,
-                &tree,
-                mesh,
-                &FlatPoints::new(&flat32[..3 * n]).unwrap(),
+            let on_demand = ClosestPointsOnDemand::with_walk_limit(
+                Arc::new(tree.clone()),
+                Arc::new(mesh.clone()),
+                long.len() + n,
             );
-            let long_walks = on_demand_rows(&on_demand, &tree, mesh, long.as_slice());
+            let by_walks = on_demand_rows(&on_demand, &FlatPoints::new(&flat32[..3 * n]).unwrap());
+            let long_walks = on_demand_rows(&on_demand, long.as_slice());
             prop_assert!(
                 on_demand.search_tree().is_none(),
                 "{}: made too early",
                 name
             );
-            let by_search = on_demand_rows(&on_demand, &tree, mesh, long.as_slice());
+            let by_search = on_demand_rows(&on_demand, long.as_slice());
             prop_assert!(on_demand.search_tree().is_some(), "{}: never made", name);
             for (j, row) in by_walks.into_iter().enumerate() {
                 prop_assert_eq!(row, rows[j], "{} walked rows: row {}", name, j);
@@ -260,12 +261,10 @@ fn assert_closest_points_agree_with(
     Ok(())
 }
 
-/// The rows `on_demand` answers for `points` (flat f32 coordinates or points) on `mesh`, whose
-/// tree is `tree`, on the pool's threads.
+/// The rows `on_demand` answers for `points` (flat f32 coordinates or points), on the pool's
+/// threads.
 fn on_demand_rows<P: QueryPoints + ?Sized>(
     on_demand: &ClosestPointsOnDemand,
-    tree: &BuildTree,
-    mesh: &TriangleMesh,
     points: &P,
 ) -> Vec<RowBits> {
     let n = points.count();
@@ -278,7 +277,7 @@ fn on_demand_rows<P: QueryPoints + ?Sized>(
         u: &mut u,
         v: &mut v,
     };
-    on_demand.closest_points_into(tree, mesh, points, columns);
+    on_demand.closest_points_into(points, columns);
     (0..n)
         .map(|i| row_bits((q[i], d[i], k[i], u[i], v[i])))
         .collect()

@@ -19,7 +19,7 @@
 //! depend on which one gave them.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use glam::DVec3;
 
@@ -30,36 +30,41 @@ use crate::batch_threads::Threads;
 use crate::bvh::BuildTree;
 use crate::mesh::TriangleMesh;
 
-/// The nearest-point search of one [`BuildTree`] and its mesh, with the [`ClosestPointTree`]
-/// made on demand (module notes). The tree and mesh are passed to each call; they must be the
-/// same every time.
-#[derive(Debug, Default)]
+/// The nearest-point search of one [`BuildTree`] over its mesh, with the [`ClosestPointTree`]
+/// made on demand (module notes).
+#[derive(Debug)]
 pub struct ClosestPointsOnDemand {
+    tree: Arc<BuildTree>,
+    mesh: Arc<TriangleMesh>,
     search: OnceLock<ClosestPointTree>,
     /// Points answered by walks so far.
     walked: AtomicUsize,
-    /// How many points may be walked; `None`: [`ClosestPointsOnDemand::payback`] of the mesh.
-    walk_limit: Option<usize>,
+    /// How many points may be walked, all batches together.
+    walk_limit: usize,
 }
 
 impl ClosestPointsOnDemand {
-    /// Nothing made yet; the search tree is made once [`ClosestPointsOnDemand::payback`] points
-    /// have been asked for.
-    pub fn new() -> Self {
-        Self::default()
+    /// Nearest points on `mesh` by `tree` (built over it by any builder); the search tree is
+    /// made once [`ClosestPointsOnDemand::payback`] points have been asked for.
+    pub fn new(tree: Arc<BuildTree>, mesh: Arc<TriangleMesh>) -> Self {
+        let limit = Self::payback(mesh.triangle_count());
+        Self::with_walk_limit(tree, mesh, limit)
     }
 
-    /// Nothing made yet; the search tree is made once `points` points have been asked for (0:
-    /// on the first batch that is not empty).
-    pub fn with_walk_limit(points: usize) -> Self {
+    /// [`ClosestPointsOnDemand::new`] with the search tree made once `points` points have been
+    /// asked for (0: by the first batch that is not empty).
+    pub fn with_walk_limit(tree: Arc<BuildTree>, mesh: Arc<TriangleMesh>, points: usize) -> Self {
         Self {
-            walk_limit: Some(points),
-            ..Self::default()
+            tree,
+            mesh,
+            search: OnceLock::new(),
+            walked: AtomicUsize::new(0),
+            walk_limit: points,
         }
     }
 
     /// How many points, all batches together, are answered by walking a tree of `triangles`
-    /// before the search tree is made (by default).
+    /// before the search tree is made (by default): `32 √triangles` (module notes).
     pub fn payback(triangles: usize) -> usize {
         (32.0 * (triangles as f64).sqrt()) as usize
     }
@@ -69,78 +74,70 @@ impl ClosestPointsOnDemand {
         self.search.get()
     }
 
-    /// The nearest surface point of each of `points` on `mesh`, whose tree is `tree`: by walks
-    /// of `tree` while they have not cost as much as making the search tree, by the search
-    /// tree (made now if need be) after; on the current rayon pool.
-    pub fn closest_points(
-        &self,
-        tree: &BuildTree,
-        mesh: &TriangleMesh,
-        points: &[DVec3],
-    ) -> Vec<Option<ClosestPoint>> {
-        if self.search.get().is_none() && self.walk_allowed(points.len(), mesh.triangle_count()) {
-            return BuildTreeSearch::new(tree, mesh).closest_points(points);
+    /// The nearest surface point of each of `points`: by walks of the builder's tree while
+    /// they have not cost as much as making the search tree, by the search tree (made now if
+    /// need be) after; on the current rayon pool.
+    pub fn closest_points(&self, points: &[DVec3]) -> Vec<Option<ClosestPoint>> {
+        if self.search.get().is_none() && self.walk_allowed(points.len()) {
+            return self.walker().closest_points(points);
         }
-        self.search_tree_of(tree, mesh).closest_points(points)
+        self.search_tree_made().closest_points(points)
     }
 
-    /// The nearest points of `points` on `mesh` written column by column into `out`, as
-    /// [`ClosestPointTree::closest_points_into`] writes them: by walks of `tree` while they
-    /// have not cost as much as making the search tree, by the search tree (made now if need
-    /// be) after. The calling thread and the current rayon pool's threads share the work.
+    /// The nearest points of `points` written column by column into `out`, as
+    /// [`ClosestPointTree::closest_points_into`] writes them: by walks of the builder's tree
+    /// while they have not cost as much as making the search tree, by the search tree (made
+    /// now if need be) after. The calling thread and the current rayon pool's threads share
+    /// the work.
     pub fn closest_points_into<P: QueryPoints + ?Sized>(
         &self,
-        tree: &BuildTree,
-        mesh: &TriangleMesh,
         points: &P,
         out: ClosestPointColumns<'_>,
     ) {
-        self.closest_points_into_with(tree, mesh, points, out, Threads::Pool);
+        self.closest_points_into_with(points, out, Threads::Pool);
     }
 
     /// [`ClosestPointsOnDemand::closest_points_into`] on the calling thread alone.
     pub fn closest_points_into_here<P: QueryPoints + ?Sized>(
         &self,
-        tree: &BuildTree,
-        mesh: &TriangleMesh,
         points: &P,
         out: ClosestPointColumns<'_>,
     ) {
-        self.closest_points_into_with(tree, mesh, points, out, Threads::Here);
+        self.closest_points_into_with(points, out, Threads::Here);
     }
 
     fn closest_points_into_with<P: QueryPoints + ?Sized>(
         &self,
-        tree: &BuildTree,
-        mesh: &TriangleMesh,
         points: &P,
         out: ClosestPointColumns<'_>,
         threads: Threads,
     ) {
-        let n = points.count();
-        if self.search.get().is_none() && self.walk_allowed(n, mesh.triangle_count()) {
-            BuildTreeSearch::new(tree, mesh).closest_points_into_with(points, out, threads);
+        if self.search.get().is_none() && self.walk_allowed(points.count()) {
+            self.walker().closest_points_into_with(points, out, threads);
             return;
         }
-        let search = self.search_tree_of(tree, mesh);
+        let search = self.search_tree_made();
         match threads {
             Threads::Pool => search.closest_points_into(points, out),
             Threads::Here => search.closest_points_into_here(points, out),
         }
     }
 
+    fn walker(&self) -> BuildTreeSearch<'_> {
+        BuildTreeSearch::new(&self.tree, &self.mesh)
+    }
+
     /// The search tree, made now if it has not been.
-    fn search_tree_of(&self, tree: &BuildTree, mesh: &TriangleMesh) -> &ClosestPointTree {
+    fn search_tree_made(&self) -> &ClosestPointTree {
         self.search
-            .get_or_init(|| ClosestPointTree::new(tree, mesh))
+            .get_or_init(|| ClosestPointTree::new(&self.tree, &self.mesh))
     }
 
     /// Whether `n` more points may be walked (and, if so, counts them as walked).
-    fn walk_allowed(&self, n: usize, triangles: usize) -> bool {
-        let limit = self.walk_limit.unwrap_or(Self::payback(triangles));
+    fn walk_allowed(&self, n: usize) -> bool {
         self.walked
             .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |walked| {
-                (walked + n <= limit).then_some(walked + n)
+                (walked + n <= self.walk_limit).then_some(walked + n)
             })
             .is_ok()
     }
