@@ -20,6 +20,7 @@ use super::closest_point::{
     for_each_column_run, run_of, write_row, ClosestPoint, ClosestPointColumns, ClosestPointTree,
 };
 use super::point_triangle::closest_point_on_triangle;
+use super::prefetch::prefetch;
 use super::query_points::QueryPoints;
 use crate::batch_threads::Threads;
 use crate::bvh::{BuildTree, NodeContent, NodeId};
@@ -162,9 +163,24 @@ impl<'a> BuildTreeSearch<'a> {
                     // Pushed farthest first, so that the nearest is searched next.
                     let first = stack.len();
                     for &child in children.iter() {
-                        let bound = box_bound(&self.tree.node(child).bounds, &bracket);
+                        let node = self.tree.node(child);
+                        let bound = box_bound(&node.bounds, &bracket);
                         if bound <= threshold {
                             stack.push((bound, child));
+                            // Its children's boxes are what the next step reads: asked for
+                            // now, while this step's work goes on.
+                            match &node.content {
+                                NodeContent::Internal(grandchildren) => {
+                                    for &g in grandchildren.iter() {
+                                        prefetch(self.tree.node(g));
+                                    }
+                                }
+                                NodeContent::Leaf(prims) => {
+                                    for &prim in prims.iter() {
+                                        prefetch(&self.mesh.indices()[prim as usize]);
+                                    }
+                                }
+                            }
                         }
                     }
                     stack[first..].sort_unstable_by(|a, b| b.0.total_cmp(&a.0));
