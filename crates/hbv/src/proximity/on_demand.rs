@@ -8,10 +8,10 @@
 //! break-even count. Measured on two cores for points uniform around the shared meshes
 //! (`examples/on_demand_payback.rs`, BENCHMARKS.md "Nearest points on a fresh BVH"), it grows
 //! about as the square root of the triangle count (the making is linear in it, a walk's cost
-//! per point grows about as its square root): 2,800–3,400 points on spot and the teapot (about
-//! 6,000 triangles), 6,500–7,900 on the bunny (69,451), 10,500–13,600 on igea (268,686), 31,000
-//! on the dragon (871,414), in two runs. [`ClosestPointsOnDemand::payback`] is `32 √triangles`,
-//! within 0.7–1.6× of each. The first `payback` points (all batches together) are walked, and the batch that would
+//! per point grows about as its square root): 2,600–3,400 points on spot and the teapot (about
+//! 6,000 triangles), 6,500–10,000 on the bunny (69,451), 10,500–17,800 on igea (268,686),
+//! 31,000–49,000 on the dragon (871,414), in four runs. [`ClosestPointsOnDemand::payback`] is
+//! `32 √triangles`, within 0.6–1.6× of each. The first `payback` points (all batches together) are walked, and the batch that would
 //! pass that count makes the tree and is answered with it: a caller asking for few points never
 //! pays for the tree, and one asking for many pays about twice the better choice in hindsight at
 //! most. Both answer exactly as
