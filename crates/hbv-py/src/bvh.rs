@@ -66,18 +66,18 @@ pub struct PyBvh {
     settings: String,
 }
 
-/// The nearest points of `points` on `bvh`'s mesh into `columns`: on the calling thread alone
-/// (`here`, `threads=1`) or shared with the current pool's threads.
+/// `closest`'s nearest points of `points` into `columns`: on the calling thread alone (`here`,
+/// `threads=1`) or shared with the current pool's threads.
 fn answer_into<P: QueryPoints + ?Sized>(
-    bvh: &PyBvh,
+    closest: &ClosestPointsOnDemand,
     points: &P,
     columns: ClosestPointColumns<'_>,
     here: bool,
 ) {
     if here {
-        bvh.closest.closest_points_into_here(points, columns);
+        closest.closest_points_into_here(points, columns);
     } else {
-        bvh.closest.closest_points_into(points, columns);
+        closest.closest_points_into(points, columns);
     }
 }
 
@@ -305,8 +305,12 @@ impl PyBvh {
                     v: &mut v,
                 };
                 match points {
-                    FloatSlice::F32(values) => answer_into(self, &rows_of(values), columns, here),
-                    FloatSlice::F64(values) => answer_into(self, &rows_of(values), columns, here),
+                    FloatSlice::F32(values) => {
+                        answer_into(&self.closest, &rows_of(values), columns, here)
+                    }
+                    FloatSlice::F64(values) => {
+                        answer_into(&self.closest, &rows_of(values), columns, here)
+                    }
                 }
             };
             run_here_or_on_threads(here || n <= ClosestPointTree::RUN, threads, answer)

@@ -14,7 +14,7 @@ use hbv::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
 use hbv::glam::DVec3;
 use hbv::proximity::{CandidateGridConfig, ClosestPointTree, SearchTally, SearchTreeConfig};
 use hbv::TriangleMesh;
-use rand::{RngExt, SeedableRng};
+mod support;
 
 fn main() {
     let mut grid = CandidateGridConfig {
@@ -50,16 +50,7 @@ fn main() {
     };
     let search = ClosestPointTree::with_grid(&tree, &mesh, config, grid);
     let build = start.elapsed().as_secs_f64();
-    let b = mesh.bounds();
-    let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
-    let pad = 0.1 * (hi - lo);
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
-    let points: Vec<DVec3> = (0..n)
-        .map(|_| {
-            let k = DVec3::new(rng.random(), rng.random(), rng.random());
-            (lo - pad + (hi - lo + 2.0 * pad) * k).as_vec3().as_dvec3()
-        })
-        .collect();
+    let points = support::points_around(&mesh, n, 7);
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()

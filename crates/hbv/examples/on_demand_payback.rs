@@ -16,10 +16,9 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use hbv::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
-use hbv::glam::DVec3;
 use hbv::proximity::{ClosestPointTree, ClosestPointsOnDemand};
 use hbv::TriangleMesh;
-use rand::{RngExt, SeedableRng};
+mod support;
 
 fn median(mut x: Vec<f64>) -> f64 {
     x.sort_by(f64::total_cmp);
@@ -41,16 +40,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for path in paths {
         let mesh = Arc::new(TriangleMesh::load(&path)?);
         let tree = Arc::new(BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh));
-        let b = mesh.bounds();
-        let (lo, hi) = (b.min.as_dvec3(), b.max.as_dvec3());
-        let pad = 0.1 * (hi - lo);
-        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
-        let points: Vec<DVec3> = (0..n)
-            .map(|_| {
-                let k = DVec3::new(rng.random(), rng.random(), rng.random());
-                (lo - pad + (hi - lo + 2.0 * pad) * k).as_vec3().as_dvec3()
-            })
-            .collect();
+        let points = support::points_around(&mesh, n, 7);
         let (mut make, mut walk, mut search) = (Vec::new(), Vec::new(), Vec::new());
         for _ in 0..runs {
             let start = Instant::now();

@@ -32,7 +32,8 @@ use crate::mesh::TriangleMesh;
 pub struct BuildTreeSearch<'a> {
     tree: &'a BuildTree,
     mesh: &'a TriangleMesh,
-    /// The largest coordinate magnitude of the mesh (the rounding margin's scale).
+    /// The largest coordinate magnitude of the triangles in the tree (the rounding margin's
+    /// scale): that of its root's box.
     mesh_scale: f64,
 }
 
@@ -42,12 +43,10 @@ type Pending = (f32, NodeId);
 impl<'a> BuildTreeSearch<'a> {
     /// Searches `tree`, built over `mesh` by any builder.
     pub fn new(tree: &'a BuildTree, mesh: &'a TriangleMesh) -> Self {
-        let b = mesh.bounds();
-        let mesh_scale = if mesh.triangle_count() == 0 {
-            0.0
-        } else {
+        let mesh_scale = tree.root().map_or(0.0, |root| {
+            let b = tree.node(root).bounds;
             b.min.abs().max(b.max.abs()).max_element() as f64
-        };
+        });
         Self {
             tree,
             mesh,
@@ -81,19 +80,7 @@ impl<'a> BuildTreeSearch<'a> {
         threads: Threads,
     ) {
         const RUN: usize = ClosestPointTree::RUN;
-        let n = points.count();
-        let ClosestPointColumns {
-            point,
-            distance,
-            prim,
-            u,
-            v,
-        } = out;
-        assert!(
-            [point.len(), distance.len(), prim.len(), u.len(), v.len()] == [n; 5],
-            "closest_points_into: every column must have one entry per point"
-        );
-        let columns = (point, distance, prim, u, v);
+        let columns = out.rows_for(points.count());
         for_each_column_run(threads, columns, |r, (point, distance, prim, u, v)| {
             let len = point.len();
             let run = run_of(points, r * RUN, len);

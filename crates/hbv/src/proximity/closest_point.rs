@@ -95,6 +95,24 @@ pub struct ClosestPointColumns<'a> {
     pub v: &'a mut [f64],
 }
 
+impl<'a> ClosestPointColumns<'a> {
+    /// The five columns, checked to hold `n` rows each (panics otherwise).
+    pub(super) fn rows_for(self, n: usize) -> ColumnRun<'a> {
+        let Self {
+            point,
+            distance,
+            prim,
+            u,
+            v,
+        } = self;
+        assert!(
+            [point.len(), distance.len(), prim.len(), u.len(), v.len()] == [n; 5],
+            "closest_points_into: every column must have one entry per point"
+        );
+        (point, distance, prim, u, v)
+    }
+}
+
 /// One run's slices of the five columns.
 pub(super) type ColumnRun<'r> = (
     &'r mut [[f64; 3]],
@@ -452,24 +470,15 @@ impl ClosestPointTree {
         self.closest_points_into_with(points, out, Threads::Here);
     }
 
-    fn closest_points_into_with<P: QueryPoints + ?Sized>(
+    /// [`ClosestPointTree::closest_points_into`] with its threads as `threads` says.
+    pub(super) fn closest_points_into_with<P: QueryPoints + ?Sized>(
         &self,
         points: &P,
         out: ClosestPointColumns<'_>,
         threads: Threads,
     ) {
         let n = points.count();
-        let ClosestPointColumns {
-            point,
-            distance,
-            prim,
-            u,
-            v,
-        } = out;
-        assert!(
-            [point.len(), distance.len(), prim.len(), u.len(), v.len()] == [n; 5],
-            "closest_points_into: every column must have one entry per point"
-        );
+        let (point, distance, prim, u, v) = out.rows_for(n);
         let grid = self.grid_for(n);
         if n <= Self::RUN {
             // One run: answered on the calling thread, in the points' own order. No pool

@@ -116,11 +116,8 @@ impl ClosestPointsOnDemand {
             self.walker().closest_points_into_with(points, out, threads);
             return;
         }
-        let search = self.search_tree_made();
-        match threads {
-            Threads::Pool => search.closest_points_into(points, out),
-            Threads::Here => search.closest_points_into_here(points, out),
-        }
+        self.search_tree_made()
+            .closest_points_into_with(points, out, threads);
     }
 
     fn walker(&self) -> BuildTreeSearch<'_> {
