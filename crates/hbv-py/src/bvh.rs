@@ -178,12 +178,12 @@ impl PyBvh {
 
     #[getter]
     fn builder(&self) -> &str {
-        &self.options.builder
+        self.options.builder_name()
     }
 
     #[getter]
     fn layout(&self) -> &str {
-        &self.options.layout
+        self.options.layout.name()
     }
 
     /// Closest hits: a dict of arrays `hit` (bool), `t` (float32, inf on a miss), `prim`
@@ -392,8 +392,8 @@ impl PyBvh {
     fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let shape = self.tree.shape();
         let out = PyDict::new(py);
-        out.set_item("builder", &self.options.builder)?;
-        out.set_item("layout", &self.options.layout)?;
+        out.set_item("builder", self.options.builder_name())?;
+        out.set_item("layout", self.options.layout.name())?;
         out.set_item("optimize", self.options.optimize)?;
         out.set_item("leaf_size", self.options.leaf_size)?;
         out.set_item("triangles", self.triangles.triangle_count())?;
@@ -413,8 +413,8 @@ impl PyBvh {
         format!(
             "hbv.BVH({} triangles, builder={:?}, layout={:?}, optimize={}, leaf_size={})",
             self.triangles.triangle_count(),
-            self.options.builder,
-            self.options.layout,
+            self.options.builder_name(),
+            self.options.layout.name(),
             if self.options.optimize {
                 "True"
             } else {
@@ -431,17 +431,17 @@ impl PyBvh {
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
         let py = slf.py();
         let me = slf.get();
-        if me.options.builder == "saved" {
+        if me.options.builder.is_none() {
             // Loaded from a file that names no builder of this package: pickled as the file.
             let bytes = pyo3::types::PyBytes::new(py, &me.to_file().to_bytes());
             let from_bytes = py.import("hbv._hbv")?.getattr("_bvh_from_bytes")?;
-            let args = (bytes, me.options.layout.clone()).into_pyobject(py)?;
+            let args = (bytes, me.options.layout.name()).into_pyobject(py)?;
             return PyTuple::new(py, [from_bytes, args.into_any()]);
         }
         let args = (
             me.mesh.clone_ref(py),
-            me.options.builder.clone(),
-            me.options.layout.clone(),
+            me.options.builder_name(),
+            me.options.layout.name(),
             me.options.optimize,
             me.options.leaf_size,
         )

@@ -13,9 +13,10 @@ use pyo3::exceptions::{
 };
 use pyo3::prelude::*;
 
-use crate::build_options::{BuildOptions, BUILDERS};
+use crate::build_options::BuildOptions;
 use crate::bvh::PyBvh;
 use crate::mesh::PyMesh;
+use hbv::bvh::build::BuilderKind;
 
 /// The settings line saved with a tree, in the command line's words (`hbv build`):
 /// `binned-sah (leaf size 4) + reinsertion optimization`.
@@ -23,7 +24,7 @@ pub fn describe(options: &BuildOptions) -> String {
     let leaf = options
         .leaf_size
         .map_or("default".to_string(), |k| k.to_string());
-    let built = format!("{} (leaf size {leaf})", options.builder);
+    let built = format!("{} (leaf size {leaf})", options.builder_name());
     if options.optimize {
         built + " + reinsertion optimization"
     } else {
@@ -36,11 +37,7 @@ pub fn describe(options: &BuildOptions) -> String {
 fn options_from_settings(settings: &str, layout: Option<&str>) -> PyResult<BuildOptions> {
     let mut options = BuildOptions::new("binned-sah", layout, false, None)?;
     let first = settings.split([' ', '(']).next().unwrap_or("");
-    options.builder = if BUILDERS.contains(&first) {
-        first.to_string()
-    } else {
-        "saved".to_string()
-    };
+    options.builder = BuilderKind::ALL.into_iter().find(|k| k.name() == first);
     options.leaf_size = settings
         .split_once("leaf size ")
         .and_then(|(_, rest)| rest.split(|c: char| !c.is_ascii_digit()).next())

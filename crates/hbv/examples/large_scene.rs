@@ -14,11 +14,9 @@
 
 use std::time::Instant;
 
-use hbv::bvh::build::{
-    BinnedSahBuilder, Builder, InsertionBuilder, LbvhBuilder, MedianBuilder, SweepSahBuilder,
-};
+use hbv::bvh::build::{BuilderKind, BuilderOptions};
 use hbv::bvh::file::BvhFile;
-use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
+use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 use hbv::bvh::BuildTree;
 use hbv::geometry::Ray;
 use hbv::glam::Vec3;
@@ -46,26 +44,18 @@ fn tree_bytes(tree: &BuildTree) -> usize {
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (mut detail, mut builder_name, mut ray_count, mut save) =
-        (92u32, "binned-sah".to_string(), 1_000_000usize, None);
+        (92u32, BuilderKind::BinnedSah, 1_000_000usize, None);
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
         let mut value = || args.next().ok_or(format!("{arg} needs a value"));
         match arg.as_str() {
             "--detail" => detail = value()?.parse()?,
-            "--builder" => builder_name = value()?,
+            "--builder" => builder_name = value()?.parse()?,
             "--rays" => ray_count = value()?.parse()?,
             "--save" => save = Some(value()?),
             _ => return Err(format!("unknown argument {arg}").into()),
         }
     }
-    let builder: Box<dyn Builder> = match builder_name.as_str() {
-        "insertion" => Box::new(InsertionBuilder::default()),
-        "binned-sah" => Box::new(BinnedSahBuilder::default()),
-        "sweep-sah" => Box::new(SweepSahBuilder::default()),
-        "median" => Box::new(MedianBuilder::default()),
-        "lbvh" => Box::new(LbvhBuilder::default()),
-        other => return Err(format!("unknown builder {other}").into()),
-    };
 
     let start = Instant::now();
     let mesh = default_scene(detail);
@@ -81,7 +71,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     );
 
     let start = Instant::now();
-    let tree = builder.build(&mesh);
+    let tree = builder_name.build(&mesh, &BuilderOptions::default());
     let build_seconds = start.elapsed().as_secs_f64();
     let peak = proc_status_bytes("VmHWM:");
     println!(
@@ -124,37 +114,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             Ray::new(origin, (unit() - 0.5).normalize_or(Vec3::X))
         })
         .collect();
-    type LayOut = fn(&BuildTree, &hbv::TriangleMesh) -> (Box<dyn Accelerator>, usize);
-    let layouts: [(&str, LayOut); 5] = [
-        ("recursive", |t, m| {
-            let l = RecursiveLayout::new(t, m);
-            let b = l.memory_bytes();
-            (Box::new(l), b)
-        }),
-        ("skip", |t, m| {
-            let l = SkipLayout::new(t, m);
-            let b = l.memory_bytes();
-            (Box::new(l), b)
-        }),
-        ("ordered", |t, m| {
-            let l = OrderedLayout::new(t, m);
-            let b = l.memory_bytes();
-            (Box::new(l), b)
-        }),
-        ("wide4", |t, m| {
-            let l = Wide4Layout::new(t, m);
-            let b = l.memory_bytes();
-            (Box::new(l), b)
-        }),
-        ("wide8", |t, m| {
-            let l = Wide8Layout::new(t, m);
-            let b = l.memory_bytes();
-            (Box::new(l), b)
-        }),
-    ];
-    for (name, lay_out) in layouts {
+    for name in LayoutKind::ALL {
         let start = Instant::now();
-        let (accel, bytes) = lay_out(&tree, &mesh);
+        let accel = name.lay_out(&tree, &mesh, &LayoutOptions::default());
+        let bytes = accel.memory_bytes();
         let layout_seconds = start.elapsed().as_secs_f64();
         let start = Instant::now();
         let hits = accel

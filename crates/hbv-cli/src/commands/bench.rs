@@ -9,9 +9,8 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::{bail, Context};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use hbv::atomic_file::Replace;
-use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
 use hbv::bvh::BuildTree;
 use hbv::geometry::Ray;
 use hbv::{Accelerator, TraversalStats, TriangleMesh};
@@ -23,17 +22,20 @@ use serde::Serialize;
 
 use hbv::grid::{GridConfig, UniformGrid};
 
-use super::build_args::{load_mesh, thread_pool, AccelName, BuildArgs, BuilderName, LayoutName};
+use super::build_args::{load_mesh, thread_pool, AccelName, BuildArgs};
 use super::flag_values::ray_count;
 use super::median::median;
+use super::name_values::layout_kind;
+use hbv::bvh::build::BuilderKind;
+use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 
 #[derive(Args)]
 pub struct BenchArgs {
     /// Mesh file (.obj, .ply, .gltf, .glb); the built-in scene when omitted.
     pub mesh: Option<PathBuf>,
     /// Layout to measure; repeat for several. Default: every layout.
-    #[arg(long = "layout", value_name = "LAYOUT", value_enum)]
-    pub layouts: Vec<LayoutName>,
+    #[arg(long = "layout", value_name = "LAYOUT", value_parser = layout_kind())]
+    pub layouts: Vec<LayoutKind>,
     #[command(flatten)]
     pub build: BuildArgs,
     /// Acceleration structure: the BVH in every --layout, or the uniform grid (with mailboxes).
@@ -165,7 +167,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     let mut results = Vec::new();
     let (described, build_seconds) = match args.accel {
         AccelName::Bvh => {
-            let build = args.build.or_builder(BuilderName::BinnedSah);
+            let build = args.build.or_builder(BuilderKind::BinnedSah);
             let (tree, build_seconds) = all_threads.install(|| build.build(&mesh));
             for layout in requested_layouts(&args.layouts) {
                 let (report, measurements) =
@@ -224,7 +226,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
 
 /// Lays the tree out as `layout` and measures it on every (set, query) case and every pool.
 fn measure_layout(
-    layout: LayoutName,
+    layout: LayoutKind,
     tree: &BuildTree,
     mesh: &TriangleMesh,
     sets: &[(RaySet, Vec<Ray>)],
@@ -232,13 +234,13 @@ fn measure_layout(
     args: &BenchArgs,
 ) -> (LayoutReport, Vec<Measurement>) {
     let start = Instant::now();
-    let (accel, memory_bytes) = lay_out_measured(layout, tree, mesh);
+    let accel = layout.lay_out(tree, mesh, &LayoutOptions::default());
     let report = LayoutReport {
-        layout: layout_name(layout),
-        memory_bytes,
+        layout: layout.to_string(),
+        memory_bytes: accel.memory_bytes(),
         layout_seconds: start.elapsed().as_secs_f64(),
     };
-    let results = measure_accelerator(accel.as_ref(), &report, sets, pools, args);
+    let results = measure_accelerator(&accel, &report, sets, pools, args);
     (report, results)
 }
 
@@ -329,9 +331,9 @@ fn thread_pools(threads: usize) -> anyhow::Result<Vec<ThreadPool>> {
 }
 
 /// The layouts asked for, each once in the order given; every layout when none is.
-fn requested_layouts(asked: &[LayoutName]) -> Vec<LayoutName> {
+fn requested_layouts(asked: &[LayoutKind]) -> Vec<LayoutKind> {
     if asked.is_empty() {
-        return LayoutName::value_variants().to_vec();
+        return LayoutKind::ALL.to_vec();
     }
     let mut layouts = Vec::new();
     for &l in asked {
@@ -340,39 +342,6 @@ fn requested_layouts(asked: &[LayoutName]) -> Vec<LayoutName> {
         }
     }
     layouts
-}
-
-/// The layout's name as `--layout` spells it.
-fn layout_name(layout: LayoutName) -> String {
-    layout
-        .to_possible_value()
-        .map_or_else(|| format!("{layout:?}"), |v| v.get_name().to_owned())
-}
-
-/// [`LayoutName::lay_out`], also returning the layout's memory: [`Accelerator`] does not report
-/// it, each layout type does.
-fn lay_out_measured(
-    layout: LayoutName,
-    tree: &BuildTree,
-    mesh: &TriangleMesh,
-) -> (Box<dyn Accelerator>, usize) {
-    fn boxed<A: Accelerator + 'static>(
-        a: A,
-        bytes: impl Fn(&A) -> usize,
-    ) -> (Box<dyn Accelerator>, usize) {
-        let memory = bytes(&a);
-        (Box::new(a), memory)
-    }
-    match layout {
-        LayoutName::Recursive => boxed(
-            RecursiveLayout::new(tree, mesh),
-            RecursiveLayout::memory_bytes,
-        ),
-        LayoutName::Skip => boxed(SkipLayout::new(tree, mesh), SkipLayout::memory_bytes),
-        LayoutName::Ordered => boxed(OrderedLayout::new(tree, mesh), OrderedLayout::memory_bytes),
-        LayoutName::Wide4 => boxed(Wide4Layout::new(tree, mesh), Wide4Layout::memory_bytes),
-        LayoutName::Wide8 => boxed(Wide8Layout::new(tree, mesh), Wide8Layout::memory_bytes),
-    }
 }
 
 /// Traces `rays` once untimed, then `repeat` times timed, on `pool`; returns each timed run's

@@ -11,7 +11,8 @@ use hbv::bvh::file::BvhFile;
 use hbv_cli::output_check::replace_policy;
 use serde_json::json;
 
-use super::build_args::{load_mesh, BuildArgs, BuilderName};
+use super::build_args::{load_mesh, BuildArgs};
+use hbv::bvh::build::BuilderKind;
 
 #[derive(Args)]
 pub struct BuildCommandArgs {
@@ -37,7 +38,7 @@ pub fn run(args: &BuildCommandArgs) -> anyhow::Result<()> {
     // A missing folder is refused before the build, with the message the write would give.
     hbv::atomic_file::check_writable(&args.out).context("cannot save the tree")?;
     let (mesh, name, load_seconds) = load_mesh(args.mesh.as_deref())?;
-    let build = args.build.or_builder(BuilderName::BinnedSah);
+    let build = args.build.or_builder(BuilderKind::BinnedSah);
     let built = build.build_with_report(&mesh);
     let cost = expected_tests(&built.tree);
     let file = BvhFile {

@@ -5,71 +5,17 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::{Args, ValueEnum};
-use hbv::bvh::build::{
-    BinnedSahBuilder, BinnedSahConfig, Builder, InsertionBuilder, InsertionConfig, InsertionOrder,
-    LbvhBuilder, LbvhConfig, MedianBuilder, MedianConfig, SweepSahBuilder, SweepSahConfig,
-};
+use hbv::bvh::build::{Builder, BuilderKind, BuilderOptions, InsertionOrder};
 use hbv::bvh::file::{is_bvh_file, BvhFile};
-use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
 use hbv::bvh::optimize::ReinsertionOptimizer;
 use hbv::bvh::BuildTree;
 use hbv::mesh::procedural::default_scene;
-use hbv::{Accelerator, TriangleMesh};
+use hbv::TriangleMesh;
+
+use super::name_values::builder_kind;
 
 /// Detail of the built-in scene (132,480 triangles).
 pub const DEFAULT_SCENE_DETAIL: u32 = 4;
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum BuilderName {
-    /// Goldsmith–Salmon incremental insertion (the seed's construction).
-    Insertion,
-    /// Top-down SAH over binned centroids (Wald 2007), parallel.
-    BinnedSah,
-    /// Top-down SAH over every split position (full sweep).
-    SweepSah,
-    /// Top-down object-median split (the simple baseline).
-    Median,
-    /// Morton-code LBVH (the fast baseline).
-    Lbvh,
-}
-
-#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
-pub enum LayoutName {
-    /// The n-ary tree as built, depth-first traversal.
-    Recursive,
-    /// Depth-first array with skip pointers, stackless (the seed's).
-    Skip,
-    /// Binary tree, nearer child first.
-    Ordered,
-    /// 4-wide nodes, SIMD box and triangle tests.
-    Wide4,
-    /// 8-wide nodes, SIMD box and triangle tests.
-    Wide8,
-}
-
-impl LayoutName {
-    /// Lays `tree` out for tracing.
-    pub fn lay_out(self, tree: &BuildTree, mesh: &TriangleMesh) -> Box<dyn Accelerator> {
-        self.lay_out_with(tree, mesh, true)
-    }
-
-    /// [`LayoutName::lay_out`], with the wide-8 layout's packets of coherent rays on or off
-    /// ([`Wide8Layout::with_ray_packets`]; the other layouts have none).
-    pub fn lay_out_with(
-        self,
-        tree: &BuildTree,
-        mesh: &TriangleMesh,
-        packets: bool,
-    ) -> Box<dyn Accelerator> {
-        match self {
-            LayoutName::Recursive => Box::new(RecursiveLayout::new(tree, mesh)),
-            LayoutName::Skip => Box::new(SkipLayout::new(tree, mesh)),
-            LayoutName::Ordered => Box::new(OrderedLayout::new(tree, mesh)),
-            LayoutName::Wide4 => Box::new(Wide4Layout::new(tree, mesh)),
-            LayoutName::Wide8 => Box::new(Wide8Layout::new(tree, mesh).with_ray_packets(packets)),
-        }
-    }
-}
 
 /// The acceleration structure of `trace` and `bench` (`--accel`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
@@ -92,11 +38,10 @@ pub enum OrderName {
 
 #[derive(Args, Clone, Debug)]
 pub struct BuildArgs {
-    /// Tree construction algorithm.
     /// Tree construction algorithm [default: insertion for `info` (the seed's construction),
     /// binned-sah for `trace` and `bench` (the fastest tree to trace)].
-    #[arg(long, value_enum)]
-    pub builder: Option<BuilderName>,
+    #[arg(long, value_parser = builder_kind())]
+    pub builder: Option<BuilderKind>,
     /// Insertion order of the insertion builder.
     #[arg(long, value_enum, default_value_t = OrderName::Shuffle)]
     pub order: OrderName,
@@ -127,53 +72,34 @@ impl Default for BuildArgs {
 
 impl BuildArgs {
     /// The builder named, or insertion (the seed's) when none was.
-    pub fn builder_name(&self) -> BuilderName {
-        self.builder.unwrap_or(BuilderName::Insertion)
+    pub fn builder_name(&self) -> BuilderKind {
+        self.builder.unwrap_or(BuilderKind::Insertion)
     }
 
     /// These options, with `builder` used when none was named.
-    pub fn or_builder(&self, builder: BuilderName) -> BuildArgs {
+    pub fn or_builder(&self, builder: BuilderKind) -> BuildArgs {
         BuildArgs {
             builder: Some(self.builder.unwrap_or(builder)),
             ..self.clone()
         }
     }
 
-    pub fn insertion_config(&self) -> InsertionConfig {
-        InsertionConfig {
-            order: match self.order {
+    /// The library's options for the builder these flags name.
+    pub fn builder_options(&self) -> BuilderOptions {
+        BuilderOptions {
+            leaf_size: self.leaf_size.map(|k| k as usize),
+            insertion_order: match self.order {
                 OrderName::Shuffle => InsertionOrder::Shuffle { seed: self.seed },
                 OrderName::Input => InsertionOrder::Input,
                 OrderName::Morton => InsertionOrder::Morton,
             },
-            max_leaf_size: self.leaf_size.unwrap_or(1) as usize,
+            optimize: self.optimize,
         }
     }
 
     /// The builder these options name.
     pub fn builder(&self) -> Box<dyn Builder> {
-        let leaf = |default: usize| self.leaf_size.map_or(default, |k| k as usize);
-        match self.builder_name() {
-            BuilderName::Insertion => Box::new(InsertionBuilder::new(self.insertion_config())),
-            BuilderName::BinnedSah => {
-                let mut config = BinnedSahConfig::default();
-                config.leaf.max_leaf_size = leaf(config.leaf.max_leaf_size);
-                Box::new(BinnedSahBuilder::new(config))
-            }
-            BuilderName::SweepSah => {
-                let mut config = SweepSahConfig::default();
-                config.leaf.max_leaf_size = leaf(config.leaf.max_leaf_size);
-                Box::new(SweepSahBuilder::new(config))
-            }
-            BuilderName::Median => {
-                let max_leaf_size = leaf(MedianConfig::default().max_leaf_size);
-                Box::new(MedianBuilder::new(MedianConfig { max_leaf_size }))
-            }
-            BuilderName::Lbvh => {
-                let max_leaf_size = leaf(LbvhConfig::default().max_leaf_size);
-                Box::new(LbvhBuilder::new(LbvhConfig { max_leaf_size }))
-            }
-        }
+        self.builder_name().builder(&self.builder_options())
     }
 
     /// Builds the tree (and optimizes it with `--optimize`); returns it with the seconds spent.
@@ -186,9 +112,10 @@ impl BuildArgs {
     pub fn build_with_report(&self, mesh: &TriangleMesh) -> BuildReport {
         let start = Instant::now();
         let (mut tree, search_nodes_per_insertion) = match self.builder_name() {
-            BuilderName::Insertion => {
-                InsertionBuilder::new(self.insertion_config()).build_with_report(mesh)
-            }
+            BuilderKind::Insertion => self
+                .builder_name()
+                .insertion_builder(&self.builder_options())
+                .build_with_report(mesh),
             _ => (self.builder().build(mesh), 0.0),
         };
         let build_seconds = start.elapsed().as_secs_f64();
@@ -210,7 +137,7 @@ impl BuildArgs {
             .leaf_size
             .map_or("default".to_string(), |k| k.to_string());
         let built = match self.builder_name() {
-            BuilderName::Insertion => {
+            BuilderKind::Insertion => {
                 let order = match self.order {
                     OrderName::Shuffle => format!("shuffle, seed {}", self.seed),
                     OrderName::Input => "input".into(),

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use clap::{Args, ValueEnum};
+use clap::Args;
 use hbv::atomic_file::Replace;
 use hbv::bvh::layout::RecursiveLayout;
 use hbv::bvh::measured_cost::{closest_hit_work, isotropic_lines, tests_per_line};
@@ -19,8 +19,10 @@ use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
 
-use super::build_args::{load_mesh, BuildArgs, BuilderName};
+use super::build_args::{load_mesh, BuildArgs};
 use super::flag_values::{ray_count, seed};
+use super::name_values::builder_kind;
+use hbv::bvh::build::BuilderKind;
 
 #[derive(Args)]
 pub struct BuildCompareArgs {
@@ -31,8 +33,8 @@ pub struct BuildCompareArgs {
     #[arg(long, default_value_t = 200_000, value_parser = ray_count)]
     pub rays: usize,
     /// Builders to compare [default: all].
-    #[arg(long = "builder", value_enum)]
-    pub builders: Vec<BuilderName>,
+    #[arg(long = "builder", value_parser = builder_kind())]
+    pub builders: Vec<BuilderKind>,
     /// Also skip the reinsertion-optimized variant of each builder.
     #[arg(long)]
     pub no_optimize: bool,
@@ -95,7 +97,7 @@ pub fn run(args: &BuildCompareArgs) -> anyhow::Result<()> {
     let inside = inside_rays(&bounds, args.rays, args.seed);
 
     let builders = if args.builders.is_empty() {
-        BuilderName::value_variants().to_vec()
+        BuilderKind::ALL.to_vec()
     } else {
         args.builders.clone()
     };

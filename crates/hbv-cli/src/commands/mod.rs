@@ -8,5 +8,6 @@ pub mod experiment;
 pub mod flag_values;
 pub mod info;
 pub mod median;
+pub mod name_values;
 pub mod render;
 pub mod trace;

@@ -17,7 +17,10 @@ use hbv_render::{
 };
 use serde_json::json;
 
-use super::build_args::{thread_pool, AccelName, BuildArgs, BuilderName, LayoutName};
+use super::build_args::{thread_pool, AccelName, BuildArgs};
+use super::name_values::layout_kind;
+use hbv::bvh::build::BuilderKind;
+use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 
 /// Most pixels of an image (8192 × 8192): the film's passes take 40 bytes a pixel.
 const MAX_PIXELS: u64 = 1 << 26;
@@ -78,8 +81,8 @@ pub struct RenderArgs {
     #[arg(long = "pass", value_enum)]
     pub passes: Vec<PassName>,
     /// How the tree is laid out for traversal.
-    #[arg(long, value_enum, default_value_t = LayoutName::Wide8)]
-    pub layout: LayoutName,
+    #[arg(long, value_parser = layout_kind(), default_value_t = LayoutKind::Wide8)]
+    pub layout: LayoutKind,
     #[command(flatten)]
     pub build: BuildArgs,
     /// Structure for intersection rays (primary, reflected, transmitted).
@@ -174,13 +177,17 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     }
     let load_seconds = start.elapsed().as_secs_f64();
 
-    let build = args.build.or_builder(BuilderName::BinnedSah);
+    let build = args.build.or_builder(BuilderKind::BinnedSah);
     let uses = |accel| args.primary == accel || args.shadow == accel;
     let mut build_seconds = 0.0;
     let bvh = uses(AccelName::Bvh).then(|| {
         let (tree, seconds) = pool.install(|| build.build(&scene.mesh));
         let start = Instant::now();
-        let laid_out: Arc<dyn Accelerator> = Arc::from(args.layout.lay_out(&tree, &scene.mesh));
+        let laid_out: Arc<dyn Accelerator> = Arc::new(args.layout.lay_out(
+            &tree,
+            &scene.mesh,
+            &LayoutOptions::default(),
+        ));
         build_seconds += seconds + start.elapsed().as_secs_f64();
         let described = format!("{:?} over {}", args.layout, build.describe()).to_lowercase();
         (laid_out, described)

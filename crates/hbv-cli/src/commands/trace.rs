@@ -13,8 +13,11 @@ use hbv::geometry::Ray;
 use hbv::grid::{GridConfig, UniformGrid};
 use hbv::Accelerator;
 
-use super::build_args::{load_scene, thread_pool, AccelName, BuildArgs, BuilderName, LayoutName};
+use super::build_args::{load_scene, thread_pool, AccelName, BuildArgs};
 use super::median::median;
+use super::name_values::layout_kind;
+use hbv::bvh::build::BuilderKind;
+use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 
 #[derive(Args)]
 pub struct TraceArgs {
@@ -47,8 +50,8 @@ pub struct TraceArgs {
     #[command(flatten)]
     pub build: BuildArgs,
     /// How the tree is laid out for traversal.
-    #[arg(long, value_enum, default_value_t = LayoutName::Wide8)]
-    pub layout: LayoutName,
+    #[arg(long, value_parser = layout_kind(), default_value_t = LayoutKind::Wide8)]
+    pub layout: LayoutKind,
     /// Acceleration structure: a BVH (--builder, --layout) or a uniform grid.
     #[arg(long, value_enum, default_value_t = AccelName::Bvh)]
     pub accel: AccelName,
@@ -85,15 +88,16 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     scene.check_build_options(&args.build)?;
     let load_seconds = scene.load_seconds;
     let rays = ray_file::read_rays(&args.rays).context("cannot read rays")?;
-    let build = args.build.or_builder(BuilderName::BinnedSah);
+    let build = args.build.or_builder(BuilderKind::BinnedSah);
     let (mesh, accel, build_seconds, built): (_, Box<dyn Accelerator>, f64, String) =
         match args.accel {
             AccelName::Bvh => {
                 let (mesh, built, builder_options) = pool.install(|| scene.tree(&build));
                 let build_seconds = built.build_seconds + built.optimize_seconds;
-                let accel = args
-                    .layout
-                    .lay_out_with(&built.tree, &mesh, !args.no_packets);
+                let options = LayoutOptions {
+                    ray_packets: !args.no_packets,
+                };
+                let accel = Box::new(args.layout.lay_out(&built.tree, &mesh, &options));
                 (mesh, accel, build_seconds, builder_options)
             }
             AccelName::Grid => {

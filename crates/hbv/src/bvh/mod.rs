@@ -10,6 +10,8 @@ pub mod morton;
 pub mod optimize;
 pub mod placement;
 mod tree;
+mod unknown_name;
 
 pub use cost::{expected_tests, sah_cost, SahWeights};
 pub use tree::{BuildNode, BuildTree, InvariantError, NodeContent, NodeId, NodeList, TreeShape};
+pub use unknown_name::UnknownName;

@@ -25,7 +25,7 @@ use std::time::Instant;
 use anyhow::bail;
 use clap::Args;
 use hbv::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
-use hbv::bvh::layout::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
+use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 use hbv::cache::{CacheStats, LastHitCache, ShadowCache};
 use hbv::geometry::Ray;
 use hbv::grid::{GridConfig, UniformGrid};
@@ -171,15 +171,14 @@ fn measure_mesh(path: Option<&Path>, args: &SeedClaimsArgs) -> anyhow::Result<Me
             ..grid_config
         },
     );
-    let structures: Vec<(&str, Box<dyn Accelerator>)> = vec![
+    let mut structures: Vec<(&str, Box<dyn Accelerator>)> = vec![
         ("grid", Box::new(grid)),
         ("grid-no-mailbox", Box::new(no_mailbox)),
-        ("recursive", Box::new(RecursiveLayout::new(&tree, &mesh))),
-        ("skip", Box::new(SkipLayout::new(&tree, &mesh))),
-        ("ordered", Box::new(OrderedLayout::new(&tree, &mesh))),
-        ("wide4", Box::new(Wide4Layout::new(&tree, &mesh))),
-        ("wide8", Box::new(Wide8Layout::new(&tree, &mesh))),
     ];
+    for kind in LayoutKind::ALL {
+        let layout = kind.lay_out(&tree, &mesh, &LayoutOptions::default());
+        structures.push((kind.name(), Box::new(layout)));
+    }
 
     let stage = Stage::new(&mesh.bounds());
     let (width, height) = camera_image_size(args.rays);

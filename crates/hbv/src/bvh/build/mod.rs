@@ -1,8 +1,10 @@
 //! Builders: each turns a mesh into a [`BuildTree`], knowing nothing of
-//! how the tree will be laid out or traversed.
+//! how the tree will be laid out or traversed. [`BuilderKind`] names each builder
+//! (`binned-sah`, ...) and makes it from its name and options.
 
 mod binned_sah;
 mod insertion;
+mod kind;
 mod lbvh;
 mod leaf_policy;
 mod median;
@@ -12,6 +14,7 @@ mod sweep_sah;
 
 pub use binned_sah::{BinnedSahBuilder, BinnedSahConfig};
 pub use insertion::{InsertionBuilder, InsertionConfig};
+pub use kind::{BuilderKind, BuilderOptions};
 pub use lbvh::{LbvhBuilder, LbvhConfig};
 pub use leaf_policy::LeafPolicy;
 pub use median::{MedianBuilder, MedianConfig};

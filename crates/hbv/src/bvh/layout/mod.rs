@@ -1,6 +1,8 @@
 //! Layouts: a [`BuildTree`](crate::bvh::BuildTree) packed for traversal, each answering the
 //! [`Accelerator`](crate::Accelerator) queries. Layouts never know which builder made the tree.
 //!
+//! [`LayoutKind`] names each layout (`wide8`, ...) and lays a tree out by name.
+//!
 //! | layout | nodes | traversal |
 //! | --- | --- | --- |
 //! | [`RecursiveLayout`] | n-ary, as built | depth first, children in stored order |
@@ -9,6 +11,7 @@
 //! | [`WideLayout`] (`Wide4Layout`, `Wide8Layout`) | 4 or 8 children, boxes as SIMD lanes; triangles in packets of 4 | stack, nearest first, SIMD box and triangle tests |
 
 mod binarize;
+mod kind;
 mod leaf_triangles;
 mod ordered;
 mod recursive;
@@ -19,6 +22,7 @@ mod wide_all_hits;
 mod wide_kernels;
 
 pub use binarize::binarize;
+pub use kind::{AnyLayout, LayoutKind, LayoutOptions};
 pub use ordered::OrderedLayout;
 pub use recursive::RecursiveLayout;
 pub use skip::SkipLayout;

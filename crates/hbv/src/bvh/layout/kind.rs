@@ -1,0 +1,240 @@
+//! The layouts by name: the one table from a name (`wide8`) to a layout of a tree, used by the
+//! command line, the Python module and the examples.
+
+use std::fmt;
+use std::str::FromStr;
+
+use super::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
+use crate::bvh::unknown_name::{parse_name, UnknownName};
+use crate::bvh::BuildTree;
+use crate::geometry::Ray;
+use crate::mesh::TriangleMesh;
+use crate::query::{Hit, TraversalKernel};
+use crate::stats::Counter;
+
+/// A layout, by name.
+///
+/// ```
+/// use hbv::bvh::build::{BuilderKind, BuilderOptions};
+/// use hbv::bvh::layout::{LayoutKind, LayoutOptions};
+/// use hbv::mesh::procedural::icosphere;
+/// use hbv::{glam::Vec3, geometry::Ray, Accelerator};
+///
+/// let mesh = icosphere(Vec3::ZERO, 1.0, 2);
+/// let tree = BuilderKind::BinnedSah.build(&mesh, &BuilderOptions::default());
+/// let kind: LayoutKind = "wide8".parse().unwrap();
+/// let layout = kind.lay_out(&tree, &mesh, &LayoutOptions::default());
+/// assert_eq!(layout.kind(), LayoutKind::Wide8);
+/// assert!(layout.occluded(&Ray::new(Vec3::ZERO, Vec3::X)));
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum LayoutKind {
+    /// The n-ary tree as built ([`RecursiveLayout`]).
+    Recursive,
+    /// Depth-first array with skip pointers, stackless ([`SkipLayout`], the seed's).
+    Skip,
+    /// Binary, nearer child first ([`OrderedLayout`]).
+    Ordered,
+    /// 4-wide nodes ([`Wide4Layout`]).
+    Wide4,
+    /// 8-wide nodes ([`Wide8Layout`]).
+    Wide8,
+}
+
+/// What a layout is asked for beyond its name.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LayoutOptions {
+    /// Whether the wide-8 layout traces coherent runs of rays as packets
+    /// ([`Wide8Layout::with_ray_packets`]; the other layouts have none). Default: on.
+    pub ray_packets: bool,
+}
+
+impl Default for LayoutOptions {
+    fn default() -> Self {
+        Self { ray_packets: true }
+    }
+}
+
+impl LayoutKind {
+    /// Every layout, in the order tables list them.
+    pub const ALL: [LayoutKind; 5] = [
+        LayoutKind::Recursive,
+        LayoutKind::Skip,
+        LayoutKind::Ordered,
+        LayoutKind::Wide4,
+        LayoutKind::Wide8,
+    ];
+
+    /// The name used on the command line, in Python and in tables.
+    pub const fn name(self) -> &'static str {
+        match self {
+            LayoutKind::Recursive => "recursive",
+            LayoutKind::Skip => "skip",
+            LayoutKind::Ordered => "ordered",
+            LayoutKind::Wide4 => "wide4",
+            LayoutKind::Wide8 => "wide8",
+        }
+    }
+
+    /// One line saying what the layout is, for help texts.
+    pub const fn summary(self) -> &'static str {
+        match self {
+            LayoutKind::Recursive => "The n-ary tree as built, depth-first traversal",
+            LayoutKind::Skip => "Depth-first array with skip pointers, stackless (the seed's)",
+            LayoutKind::Ordered => "Binary tree, nearer child first",
+            LayoutKind::Wide4 => "4-wide nodes, SIMD box and triangle tests",
+            LayoutKind::Wide8 => "8-wide nodes, SIMD box and triangle tests",
+        }
+    }
+
+    /// Lays `tree` (built over `mesh`) out in this layout.
+    pub fn lay_out(
+        self,
+        tree: &BuildTree,
+        mesh: &TriangleMesh,
+        options: &LayoutOptions,
+    ) -> AnyLayout {
+        match self {
+            LayoutKind::Recursive => AnyLayout::Recursive(RecursiveLayout::new(tree, mesh)),
+            LayoutKind::Skip => AnyLayout::Skip(SkipLayout::new(tree, mesh)),
+            LayoutKind::Ordered => AnyLayout::Ordered(OrderedLayout::new(tree, mesh)),
+            LayoutKind::Wide4 => AnyLayout::Wide4(Wide4Layout::new(tree, mesh)),
+            LayoutKind::Wide8 => {
+                AnyLayout::Wide8(Wide8Layout::new(tree, mesh).with_ray_packets(options.ray_packets))
+            }
+        }
+    }
+}
+
+impl fmt::Display for LayoutKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.pad(self.name())
+    }
+}
+
+impl FromStr for LayoutKind {
+    type Err = UnknownName;
+
+    /// A layout's [`name`](LayoutKind::name), case ignored and `_` read as `-`.
+    fn from_str(name: &str) -> Result<Self, UnknownName> {
+        parse_name("layout", name, &LayoutKind::ALL, LayoutKind::name)
+    }
+}
+
+/// A tree laid out in the layout a [`LayoutKind`] names: answers every
+/// [`Accelerator`](crate::Accelerator) query as that layout does (each call is passed on whole,
+/// batches included).
+#[derive(Clone, Debug)]
+pub enum AnyLayout {
+    Recursive(RecursiveLayout),
+    Skip(SkipLayout),
+    Ordered(OrderedLayout),
+    Wide4(Wide4Layout),
+    Wide8(Wide8Layout),
+}
+
+/// `$body` with `$layout` bound to the layout inside `$any`, whatever its kind.
+macro_rules! with_layout {
+    ($any:expr, $layout:ident => $body:expr) => {
+        match $any {
+            AnyLayout::Recursive($layout) => $body,
+            AnyLayout::Skip($layout) => $body,
+            AnyLayout::Ordered($layout) => $body,
+            AnyLayout::Wide4($layout) => $body,
+            AnyLayout::Wide8($layout) => $body,
+        }
+    };
+}
+
+impl AnyLayout {
+    /// The name of this layout.
+    pub fn kind(&self) -> LayoutKind {
+        match self {
+            AnyLayout::Recursive(_) => LayoutKind::Recursive,
+            AnyLayout::Skip(_) => LayoutKind::Skip,
+            AnyLayout::Ordered(_) => LayoutKind::Ordered,
+            AnyLayout::Wide4(_) => LayoutKind::Wide4,
+            AnyLayout::Wide8(_) => LayoutKind::Wide8,
+        }
+    }
+
+    /// Bytes held by the layout's nodes and triangles.
+    pub fn memory_bytes(&self) -> usize {
+        with_layout!(self, layout => layout.memory_bytes())
+    }
+}
+
+impl TraversalKernel for AnyLayout {
+    fn closest_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
+        with_layout!(self, layout => layout.closest_hit(ray, counter))
+    }
+
+    fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
+        with_layout!(self, layout => layout.any_hit(ray, counter))
+    }
+
+    fn any_hit_prim<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
+        with_layout!(self, layout => layout.any_hit_prim(ray, counter))
+    }
+
+    fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        with_layout!(self, layout => layout.closest_hits(rays, hits))
+    }
+
+    fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
+        with_layout!(self, layout => layout.occluders(rays, occluders))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::build::{BuilderKind, BuilderOptions};
+    use crate::glam::Vec3;
+    use crate::mesh::procedural::icosphere;
+    use crate::Accelerator;
+
+    #[test]
+    fn names_round_trip() {
+        for kind in LayoutKind::ALL {
+            assert_eq!(kind.to_string().parse::<LayoutKind>(), Ok(kind));
+        }
+        assert_eq!("WIDE8".parse::<LayoutKind>(), Ok(LayoutKind::Wide8));
+        let error = "bvh8".parse::<LayoutKind>().unwrap_err();
+        assert_eq!(
+            error.to_string(),
+            "unknown layout \"bvh8\"; expected one of recursive, skip, ordered, wide4, wide8"
+        );
+    }
+
+    #[test]
+    fn every_layout_answers_as_the_layout_it_holds() {
+        let mesh = icosphere(Vec3::ZERO, 1.0, 2);
+        let tree = BuilderKind::BinnedSah.build(&mesh, &BuilderOptions::default());
+        let rays: Vec<Ray> = (0..64)
+            .map(|i| {
+                let a = i as f32 * 0.37;
+                Ray::new(
+                    Vec3::new(a.cos() * 3.0, a.sin() * 3.0, 0.1 * a),
+                    -Vec3::new(a.cos(), a.sin(), 0.05),
+                )
+            })
+            .collect();
+        let wide8 = Wide8Layout::new(&tree, &mesh);
+        let expected = wide8.intersect_batch(&rays);
+        for kind in LayoutKind::ALL {
+            let layout = kind.lay_out(&tree, &mesh, &LayoutOptions::default());
+            assert_eq!(layout.kind(), kind);
+            assert!(layout.memory_bytes() > 0);
+            let hits = layout.intersect_batch(&rays);
+            for (got, want) in hits.iter().zip(&expected) {
+                assert_eq!(got.map(|h| h.prim), want.map(|h| h.prim), "{kind}");
+            }
+            assert_eq!(
+                layout.occluded_batch(&rays),
+                wide8.occluded_batch(&rays),
+                "{kind}"
+            );
+        }
+    }
+}
