@@ -8,7 +8,7 @@ use hbv::bvh::build::{
 use hbv::bvh::optimize::{
     collapse_leaves, CollapseConfig, ReinsertionConfig, ReinsertionOptimizer,
 };
-use hbv::bvh::placement::TreeCost;
+use hbv::bvh::TreeCost;
 use hbv::bvh::{expected_tests, sah_cost, BuildTree, SahWeights};
 use hbv::geometry::{Aabb, Ray};
 use hbv::mesh::procedural::{default_scene, icosphere, torus};

@@ -10,8 +10,11 @@ pub mod morton;
 pub mod optimize;
 pub mod placement;
 mod tree;
+mod tree_cost;
+mod tree_edits;
 mod unknown_name;
 
 pub use cost::{expected_tests, sah_cost, SahWeights};
 pub use tree::{BuildNode, BuildTree, InvariantError, NodeContent, NodeId, NodeList, TreeShape};
+pub use tree_cost::TreeCost;
 pub use unknown_name::UnknownName;

@@ -234,8 +234,8 @@ impl Triangle {
     /// The first is a sliver or a huge triangle seen at a slant, where `det` is small against
     /// the edge functions' error. On ordinary triangles that term is 8 to 64 `ε |t|` (a bound:
     /// the error itself is 1 to 3 ulps). Measured over the hits of random rays on the six
-    /// meshes of `../shared/scenes` (scans and models, 36 to 871,414 triangles; BENCHMARKS.md,
-    /// session 18): below 256 the error stays within about 10 ulps; 0.2–0.7 % of hits lie
+    /// meshes of `../shared/scenes` (scans and models, 36 to 871,414 triangles; BENCHMARKS.md):
+    /// below 256 the error stays within about 10 ulps; 0.2–0.7 % of hits lie
     /// above, and their error grows with the term (1e-3 relative on a triangle 1e-5 wide). The
     /// second is a depth whose products may have left f32's normal range and lost their
     /// precision (each product's absolute error is then up to 2^-150, which `det` may

@@ -5,7 +5,7 @@
 //! - `PROPTEST_CASES=N`: every property test runs `N` cases (proptest's own variable, which an
 //!   explicit `with_cases` would otherwise override).
 //! - `HBV_PROPTEST_SCALE=K`: every property test runs `K` times its own count (a soak run:
-//!   rare inputs, such as the overflowing error scale found in session 10, turn up sooner).
+//!   rare inputs, such as an error scale that overflows f32, turn up sooner).
 //!
 //! The other `PROPTEST_*` variables (seed source, shrinking limits, …) keep proptest's meaning.
 

@@ -8,8 +8,9 @@ use std::time::{Duration, Instant};
 use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
-use crate::bvh::placement::{PlacedItem, PlacementRules, PlacementSearch, TreeCost};
+use crate::bvh::placement::{PlacedItem, PlacementRules, PlacementSearch};
 use crate::bvh::tree::{BuildTree, NodeId};
+use crate::bvh::TreeCost;
 
 /// Fewest nodes a pass tries (see [`ReinsertionConfig::batch_fraction`]).
 pub const MIN_BATCH: usize = 64;
@@ -140,7 +141,7 @@ impl ReinsertionOptimizer {
     /// triangles (a room's walls around its furniture), whose boxes span the scene. A
     /// centroid split puts each wall inside a subtree whose box it stretches over everything;
     /// reinsertion lifts it next to the root, where every ray tests it once. Measured on a
-    /// Zen 3 core (BENCHMARKS.md, session 18): the Cornell box's random rays from 913 to 673
+    /// Zen 3 core (BENCHMARKS.md, "Reinsertion by default on small meshes"): the Cornell box's random rays from 913 to 673
     /// instructions each and 1.0× to 1.4× embreex from Python; generated rooms of 8 to 300
     /// boxes 21–34 % fewer instructions; tessellated meshes (icospheres, a terrain, a triangle
     /// soup) within ±2 %. On larger scanned meshes the wide layouts gain nothing from it
