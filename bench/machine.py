@@ -1,6 +1,7 @@
 """The machine a benchmark ran on, as one line and as a dict, so that every table says where it
 was measured (timings and even ratios against a peer differ between processor generations:
-BENCHMARKS.md, "Python (issue 7)", session 8).
+spot's and the teapot's incoherent rays read 0.78-1.00x Embree on a Zen 3 VM and 1.23-1.55x on a
+Zen 5 VM; BENCHMARKS.md, "Rays against Embree from the command line").
 
 Read from Linux's /proc/cpuinfo and /sys (elsewhere the fields it cannot read are "?"), and the
 versions of the packages compared.
