@@ -7,14 +7,14 @@ pub mod file;
 pub mod layout;
 pub mod measured_cost;
 pub mod morton;
+mod name_table;
 pub mod optimize;
 pub mod placement;
 mod tree;
 mod tree_cost;
 mod tree_edits;
-mod unknown_name;
 
 pub use cost::{expected_tests, sah_cost, SahWeights};
+pub use name_table::UnknownName;
 pub use tree::{BuildNode, BuildTree, InvariantError, NodeContent, NodeId, NodeList, TreeShape};
 pub use tree_cost::TreeCost;
-pub use unknown_name::UnknownName;

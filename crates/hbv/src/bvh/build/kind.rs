@@ -1,15 +1,12 @@
 //! The builders by name: the one table from a name (`binned-sah`) to a [`Builder`], used by the
 //! command line, the Python module and the examples.
 
-use std::fmt;
-use std::str::FromStr;
-
 use super::{
     BinnedSahBuilder, BinnedSahConfig, Builder, InsertionBuilder, InsertionConfig, InsertionOrder,
     LbvhBuilder, LbvhConfig, MedianBuilder, MedianConfig, SweepSahBuilder, SweepSahConfig,
 };
+use crate::bvh::name_table::name_table;
 use crate::bvh::optimize::ReinsertionOptimizer;
-use crate::bvh::unknown_name::{parse_name, UnknownName};
 use crate::bvh::BuildTree;
 use crate::mesh::TriangleMesh;
 
@@ -140,20 +137,7 @@ impl BuilderKind {
     }
 }
 
-impl fmt::Display for BuilderKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.pad(self.name())
-    }
-}
-
-impl FromStr for BuilderKind {
-    type Err = UnknownName;
-
-    /// A builder's [`name`](BuilderKind::name), case ignored and `_` read as `-`.
-    fn from_str(name: &str) -> Result<Self, UnknownName> {
-        parse_name("builder", name, &BuilderKind::ALL, BuilderKind::name)
-    }
-}
+name_table!(BuilderKind, "builder");
 
 #[cfg(test)]
 mod tests {

@@ -1,11 +1,8 @@
 //! The layouts by name: the one table from a name (`wide8`) to a layout of a tree, used by the
 //! command line, the Python module and the examples.
 
-use std::fmt;
-use std::str::FromStr;
-
 use super::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
-use crate::bvh::unknown_name::{parse_name, UnknownName};
+use crate::bvh::name_table::name_table;
 use crate::bvh::BuildTree;
 use crate::geometry::Ray;
 use crate::mesh::TriangleMesh;
@@ -106,20 +103,7 @@ impl LayoutKind {
     }
 }
 
-impl fmt::Display for LayoutKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.pad(self.name())
-    }
-}
-
-impl FromStr for LayoutKind {
-    type Err = UnknownName;
-
-    /// A layout's [`name`](LayoutKind::name), case ignored and `_` read as `-`.
-    fn from_str(name: &str) -> Result<Self, UnknownName> {
-        parse_name("layout", name, &LayoutKind::ALL, LayoutKind::name)
-    }
-}
+name_table!(LayoutKind, "layout");
 
 /// A tree laid out in the layout a [`LayoutKind`] names: answers every
 /// [`Accelerator`](crate::Accelerator) query as that layout does (each call is passed on whole,

@@ -1,5 +1,6 @@
-//! The error of parsing a builder or layout name ([`BuilderKind`](crate::bvh::build::BuilderKind),
-//! [`LayoutKind`](crate::bvh::layout::LayoutKind)).
+//! What the name tables ([`BuilderKind`](crate::bvh::build::BuilderKind),
+//! [`LayoutKind`](crate::bvh::layout::LayoutKind)) share: reading a name, writing it, and the
+//! error of a name not in the table.
 
 use std::fmt;
 
@@ -47,3 +48,26 @@ pub(crate) fn parse_name<K: Copy>(
             expected: all.iter().map(|&k| name_of(k)).collect(),
         })
 }
+
+/// `Display` (the entry's name, padded as asked) and `FromStr` (through [`parse_name`]) for a
+/// name table: an enum with `const ALL: [Self; N]` and `const fn name(self) -> &'static str`;
+/// `$what` says what its entries are (`"builder"`).
+macro_rules! name_table {
+    ($kind:ty, $what:literal) => {
+        impl std::fmt::Display for $kind {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.pad(self.name())
+            }
+        }
+
+        impl std::str::FromStr for $kind {
+            type Err = $crate::bvh::UnknownName;
+
+            /// An entry's name, case ignored and `_` read as `-`.
+            fn from_str(name: &str) -> Result<Self, Self::Err> {
+                $crate::bvh::name_table::parse_name($what, name, &<$kind>::ALL, <$kind>::name)
+            }
+        }
+    };
+}
+pub(crate) use name_table;
