@@ -31,9 +31,9 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::directed_rounding::f32_below;
 use super::point_triangle::{closest_point_on_flagged_triangle, TrianglePoint};
 use super::prefetch::prefetch;
+use crate::geometry::directed_rounding::f32_below;
 
 /// Settings of the candidate grid that `closest_point` queries use on meshes of a few large
 /// triangles (cells listing every triangle that can be nearest inside them; see

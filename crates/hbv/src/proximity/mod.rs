@@ -11,7 +11,6 @@ mod box_bound;
 mod build_tree_search;
 mod candidate_grid;
 pub mod closest_point;
-mod directed_rounding;
 pub mod inside;
 mod node_frame;
 mod on_demand;

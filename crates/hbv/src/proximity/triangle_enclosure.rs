@@ -28,7 +28,7 @@
 
 use glam::{DVec3, Vec3};
 
-use super::directed_rounding::f32_above;
+use crate::geometry::directed_rounding::f32_above;
 
 /// The enclosure of one triangle (module notes), in f32.
 #[derive(Clone, Copy, Debug)]
