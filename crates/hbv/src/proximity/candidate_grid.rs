@@ -81,7 +81,7 @@ impl Default for CandidateGridConfig {
 
 /// One cell: `count > 0` triangles listed from `first` in the grid's candidate array, or
 /// (`count == 0`) the seed triangle `first` of a tree search. Triangles are the search tree's
-/// local ids (`LANES × packet + lane`, module `triangle_packet`).
+/// local ids (`LANES × packet + lane`, module `enclosure_packet`).
 #[derive(Clone, Copy, Debug)]
 struct Cell {
     first: u32,

@@ -10,6 +10,7 @@ use super::box_bound::{prune_threshold, rounding_margin, PointBracket};
 use super::candidate_grid::{
     CandidateGrid, CandidateGridConfig, CellAnswer, ListedTriangle, Located, NearestTriangles,
 };
+use super::enclosure_packet::LANES;
 use super::point_triangle::{
     closest_point_on_flagged_triangle, closest_point_on_sliver, closest_point_on_triangle,
     TrianglePoint,
@@ -22,7 +23,6 @@ use super::query_points::QueryPoints;
 use super::search_lanes::AvxLanes;
 use super::search_lanes::{PortableLanes, SearchLanes};
 use super::search_tree::{SearchTree, SearchTreeConfig, WIDTH};
-use super::triangle_packet::LANES;
 use crate::batch_threads::{for_each_chunk, map_collect, share_out, Threads};
 use crate::bvh::BuildTree;
 use crate::mesh::TriangleMesh;

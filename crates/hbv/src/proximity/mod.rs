@@ -3,7 +3,7 @@
 //!
 //! | query | file | how |
 //! | --- | --- | --- |
-//! | nearest surface point | [`closest_point`] | branch and bound over an 8-child BVH (`search_tree`): conservative f32 bounds prune nodes (point–box, `box_bound`; near the leaves in a frame facing the surface, `node_frame`) and single triangles (their enclosing slab, cylinder and edge half-spaces: `triangle_enclosure`, `triangle_packet`), nearest child first; [`point_triangle`] decides in f64 (`point_triangle_lanes`: four triangles side by side, branch-free, the same bits; `search_lanes`: the AVX and portable forms of the search's lane steps) |
+//! | nearest surface point | [`closest_point`] | branch and bound over an 8-child BVH (`search_tree`): conservative f32 bounds prune nodes (point–box, `box_bound`; near the leaves in a frame facing the surface, `node_frame`) and single triangles (their enclosing slab, cylinder and edge half-spaces: `triangle_enclosure`, `enclosure_packet`), nearest child first; [`point_triangle`] decides in f64 (`point_triangle_lanes`: four triangles side by side, branch-free, the same bits; `search_lanes`: the AVX and portable forms of the search's lane steps) |
 //! | nearest point, first queries of a fresh tree | [`BuildTreeSearch`], [`ClosestPointsOnDemand`] | the same branch and bound over the builder's own tree, f64 decisions triangle by triangle, until the 8-child tree has paid for its making (`on_demand`) |
 //! | inside a closed mesh | [`inside`] | one ray's parity, from one all-hits traversal (exact under the half-open edge rule); the majority of three for meshes that are not closed |
 
@@ -11,6 +11,7 @@ mod box_bound;
 mod build_tree_search;
 mod candidate_grid;
 pub mod closest_point;
+mod enclosure_packet;
 pub mod inside;
 mod node_frame;
 mod on_demand;
@@ -22,7 +23,6 @@ mod query_points;
 mod search_lanes;
 mod search_tree;
 mod triangle_enclosure;
-mod triangle_packet;
 
 pub use build_tree_search::BuildTreeSearch;
 pub use candidate_grid::CandidateGridConfig;

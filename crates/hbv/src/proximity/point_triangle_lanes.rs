@@ -24,7 +24,7 @@
 
 use glam::DVec3;
 
-use super::triangle_packet::LANES;
+use super::enclosure_packet::LANES;
 
 /// Triangles decided side by side.
 pub(super) const F64_LANES: usize = 4;
@@ -33,7 +33,7 @@ pub(super) const F64_LANES: usize = 4;
 /// (`a`, `b`, `c`) of the triangle in `lane`.
 type LaneTriangles = [[[f64; F64_LANES]; 3]; 3];
 
-/// A triangle packet's f32 vertices (`TrianglePacket::vertex`): `[k][axis][lane]`, [`LANES`]
+/// An enclosure packet's f32 vertices (`EnclosurePacket::vertex`): `[k][axis][lane]`, [`LANES`]
 /// lanes, decided here half a packet ([`F64_LANES`] lanes) at a time.
 pub(super) type PacketVertices = [[[f32; LANES]; 3]; 3];
 
