@@ -6,7 +6,7 @@
 //! **Why.** The scalar routine picks the point's Voronoi region (three vertices, three edges,
 //! the face) by up to six branches, which the CPU mispredicts often on a nearest-point query
 //! (the region changes from one triangle to the next); a search that decides several triangles
-//! per query paid for them about twice their instructions (session 5). Here every region's
+//! per query paid for them about twice their instructions (measured). Here every region's
 //! point is computed and the right one selected, four lanes of f64 side by side (one AVX
 //! register, two SSE ones without AVX).
 //!

@@ -43,7 +43,7 @@ impl Default for SearchTreeConfig {
 }
 
 /// Children per node: eight, one AVX register of f32 bounds (two SSE registers without AVX).
-/// Eight against four (session 5): on spot 10.4 → 6.6 nodes per query, 4,332 → 3,916
+/// Eight against four children, measured: on spot 10.4 → 6.6 nodes per query, 4,332 → 3,916
 /// instructions, about 6 % faster (bunny, teapot alike).
 pub(super) const WIDTH: usize = 8;
 
