@@ -183,3 +183,52 @@ fn box_bound(b: &Aabb, bracket: &PointBracket) -> f32 {
     };
     boxes.distance_squared_lower_bounds(bracket)[0]
 }
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
+    use crate::mesh::procedural::icosphere;
+    use crate::proximity::{closest_point_brute_force, ClosestPointsOnDemand, SearchTally};
+
+    /// The walk's batch forms (a list, with tallies, on the calling thread or the pool's)
+    /// answer as the brute force, and a counted walk counts the nodes it opens and at least
+    /// the triangle it answers with.
+    #[test]
+    fn walked_batches_and_tallies_agree_with_brute_force() {
+        let mesh = icosphere(Vec3::new(0.5, -1.0, 2.0), 1.5, 3);
+        let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+        let walk = BuildTreeSearch::new(&tree, &mesh);
+        let points: Vec<DVec3> = (0..700)
+            .map(|i| {
+                let t = i as f64;
+                DVec3::new((t * 0.37).sin(), (t * 1.91).cos(), (t * 0.13).sin() + 2.0) * 2.5
+            })
+            .chain([DVec3::NAN])
+            .collect();
+        let want: Vec<_> = points
+            .iter()
+            .map(|&p| closest_point_brute_force(&mesh, p))
+            .collect();
+        assert_eq!(walk.closest_points(&points), want);
+        let tallied = walk.closest_points_tallied(&points);
+        for ((found, tally), want) in tallied.iter().zip(&want) {
+            assert_eq!(found, want);
+            if found.is_some() {
+                assert!(tally.nodes >= 1 && tally.exact >= 1 && tally.packets == 0);
+            }
+        }
+        let mut single = SearchTally::default();
+        assert_eq!(walk.closest_point_tallied(points[3], &mut single), want[3]);
+        assert_eq!(single, tallied[3].1);
+        // On demand: one point walked, then the search tree once the walks are spent.
+        let on_demand =
+            ClosestPointsOnDemand::with_walk_limit(tree.clone().into(), mesh.clone().into(), 1);
+        assert_eq!(on_demand.closest_point(points[5]), want[5]);
+        assert!(on_demand.search_tree().is_none());
+        assert_eq!(on_demand.closest_points(&points), want);
+        assert!(on_demand.search_tree().is_some());
+    }
+}
