@@ -27,21 +27,22 @@ use crate::mesh::TriangleMesh;
 /// leaves of eight-triangle packets (module `search_tree`), boxes and triangles in f32 as in the
 /// mesh.
 ///
-/// **Search** (branch and bound, as in Larsen et al. 1999 and Ericson §6.5): keep the best
-/// squared distance `d²` so far; at a node bound the children's box distances
-/// `Σ_axis max(min - p, 0, p - max)²` from below (near the leaves, boxes in a frame facing the
-/// surface patch, module `node_frame`), and visit those not farther than `d²`, the nearest
-/// first; in a leaf, bound each triangle from below by the distance to an enclosure (its plane's
-/// slab cut by a cylinder around it and its edges' half-spaces, module `triangle_enclosure`),
-/// and decide the survivors with
-/// [`closest_point_on_triangle`] (Ericson §5.1.5) in f64 (four at a time, branch-free, where
-/// two or more of a half packet survive: module `point_triangle_lanes`). The bounds are f32, eight at a
-/// time, and conservative (`proximity/box_bound.rs`): nothing that the f64 brute force would pick is
-/// ever pruned, so the answers are the brute force's, ties included (smallest face id). The
-/// search is module `branch_and_bound`, the batches (Morton order, seeds, threads) module
-/// `batches`.
-/// Degenerate triangles are left out, as in every tree (they have no face to be nearest to, and
-/// their edges are other triangles' edges on meshes that matter).
+/// **Search** (branch and bound, as in Larsen et al. 1999 and Ericson §6.5; module
+/// `branch_and_bound`): keep the best squared distance `d²` so far; at a node bound the
+/// children's box distances `Σ_axis max(min - p, 0, p - max)²` from below (near the leaves,
+/// boxes in a frame facing the surface patch, module `node_frame`), and visit those not farther
+/// than `d²`, the nearest first; in a leaf, bound each triangle from below by the distance to an
+/// enclosure (its plane's slab cut by a cylinder around it and its edges' half-spaces, module
+/// `triangle_enclosure`), and decide the survivors with [`closest_point_on_triangle`] (Ericson
+/// §5.1.5) in f64 (four at a time, branch-free, where two or more of a half packet survive:
+/// module `point_triangle_lanes`). The bounds are f32, eight at a time, and conservative
+/// (`proximity/box_bound.rs`): nothing that the f64 brute force would pick is ever pruned, so
+/// the answers are the brute force's, ties included (smallest face id). Batches (Morton order,
+/// seeds, threads) are module `batches`'s. Degenerate triangles are left out, as in every tree
+/// (they have no face to be nearest to, and their edges are other triangles' edges on meshes
+/// that matter).
+///
+/// Queried through [`NearestPointSearch`].
 #[derive(Debug)]
 pub struct ClosestPointTree {
     pub(super) tree: SearchTree,
@@ -180,9 +181,8 @@ impl ClosestPointTree {
 }
 
 impl NearestPointSearch for ClosestPointTree {
-    /// One point: from the grid where it has been made, else by a tree search without seed
-    /// (a counted search always, module `search_tally`); the portable lane steps (one point
-    /// does not pay for choosing the AVX2 form).
+    /// One point, with the portable lane steps: from the grid where it has been made, else by
+    /// a tree search without seed (a counted search always, module `search_tally`).
     fn closest_point_tallied<T: Tally>(&self, p: DVec3, tally: &mut T) -> Option<ClosestPoint> {
         if T::COUNTS {
             return self
