@@ -10,7 +10,8 @@ use hbv::bvh::layout::Wide8Layout;
 use hbv::bvh::optimize::ReinsertionOptimizer;
 use hbv::bvh::{expected_tests, sah_cost, BuildTree, SahWeights};
 use hbv::proximity::{
-    ClosestPointColumns, ClosestPointTree, ClosestPointsOnDemand, FlatPoints, QueryPoints,
+    BatchThreads, ClosestPointColumns, ClosestPointTree, ClosestPointsOnDemand, FlatPoints,
+    NearestPointSearch,
 };
 use hbv::{Accelerator, TriangleMesh};
 use numpy::{IntoPyArray, PyArray1, PyArrayMethods};
@@ -64,21 +65,6 @@ pub struct PyBvh {
     build_seconds: f64,
     /// The settings line saved with the tree (`hbv build`'s words), or read from its file.
     settings: String,
-}
-
-/// `closest`'s nearest points of `points` into `columns`: on the calling thread alone (`here`,
-/// `threads=1`) or shared with the current pool's threads.
-fn answer_into<P: QueryPoints + ?Sized>(
-    closest: &ClosestPointsOnDemand,
-    points: &P,
-    columns: ClosestPointColumns<'_>,
-    here: bool,
-) {
-    if here {
-        closest.closest_points_into_here(points, columns);
-    } else {
-        closest.closest_points_into(points, columns);
-    }
 }
 
 /// The (N, 3) rows of a checked point array.
@@ -291,10 +277,15 @@ impl PyBvh {
         let points = points.values();
         let (mut point, mut distance) = (vec![[0.0f64; 3]; n], vec![0.0f64; n]);
         let (mut prim, mut u, mut v) = (vec![0i64; n], vec![0.0f64; n], vec![0.0f64; n]);
-        // One thread is the calling thread itself (`closest_points_into_here`), not a pool of
-        // one to wake; so is one run of points whatever `threads` says (`closest_points_into`
-        // answers it in place).
+        // One thread is the calling thread itself (`BatchThreads::CALLING_THREAD`), not a pool
+        // of one to wake; so is one run of points whatever `threads` says (a batch answers it
+        // in place).
         let here = one_thread(threads);
+        let batch_threads = if here {
+            BatchThreads::CALLING_THREAD
+        } else {
+            BatchThreads::POOL
+        };
         py.detach(|| {
             let answer = || {
                 let columns = ClosestPointColumns {
@@ -305,12 +296,16 @@ impl PyBvh {
                     v: &mut v,
                 };
                 match points {
-                    FloatSlice::F32(values) => {
-                        answer_into(&self.closest, &rows_of(values), columns, here)
-                    }
-                    FloatSlice::F64(values) => {
-                        answer_into(&self.closest, &rows_of(values), columns, here)
-                    }
+                    FloatSlice::F32(values) => self.closest.closest_points_into_with(
+                        &rows_of(values),
+                        columns,
+                        batch_threads,
+                    ),
+                    FloatSlice::F64(values) => self.closest.closest_points_into_with(
+                        &rows_of(values),
+                        columns,
+                        batch_threads,
+                    ),
                 }
             };
             run_here_or_on_threads(here || n <= ClosestPointTree::RUN, threads, answer)

@@ -12,7 +12,9 @@ use std::time::Instant;
 
 use hbv::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
 use hbv::glam::DVec3;
-use hbv::proximity::{CandidateGridConfig, ClosestPointTree, SearchTally, SearchTreeConfig};
+use hbv::proximity::{
+    CandidateGridConfig, ClosestPointTree, NearestPointSearch, SearchTally, SearchTreeConfig,
+};
 use hbv::TriangleMesh;
 mod support;
 
@@ -119,7 +121,7 @@ fn print_tally(search: &ClosestPointTree, mesh: &TriangleMesh, points: &[DVec3])
     let sample = &points[..points.len().min(2048)];
     let mut tied = 0usize;
     for p in sample {
-        let Some(best) = search.closest_point_f64(*p) else {
+        let Some(best) = search.closest_point(*p) else {
             continue;
         };
         let d2 = best.distance * best.distance;

@@ -16,7 +16,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use hbv::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
-use hbv::proximity::{ClosestPointTree, ClosestPointsOnDemand};
+use hbv::proximity::{ClosestPointTree, ClosestPointsOnDemand, NearestPointSearch};
 use hbv::TriangleMesh;
 mod support;
 

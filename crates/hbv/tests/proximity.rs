@@ -13,8 +13,8 @@ use std::sync::Arc;
 
 use hbv::proximity::{
     closest_point_brute_force, contains, BuildTreeSearch, CandidateGridConfig, ClosestPoint,
-    ClosestPointColumns, ClosestPointTree, ClosestPointsOnDemand, FlatPoints, QueryPoints,
-    SearchTally, SearchTreeConfig,
+    ClosestPointColumns, ClosestPointTree, ClosestPointsOnDemand, FlatPoints, NearestPointSearch,
+    QueryPoints, SearchTally, SearchTreeConfig,
 };
 use hbv::{BruteForce, TriangleMesh};
 use proptest::prelude::*;
@@ -734,7 +734,7 @@ fn closest_point_on_a_torus_is_on_its_tube() {
     let empty = TriangleMesh::new(vec![], vec![]).unwrap();
     let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&empty);
     assert!(ClosestPointTree::new(&tree, &empty)
-        .closest_point_f64(DVec3::ZERO)
+        .closest_point(DVec3::ZERO)
         .is_none());
 }
 
@@ -779,7 +779,7 @@ fn the_grid_is_made_once_enough_points_are_asked_for() {
     assert_eq!(search.grid_summary(), (0, 0, 0));
     // Single queries count too, and the 24th more makes it.
     for p in &points[1000..1023] {
-        agree(vec![search.closest_point_f64(*p)], &[*p]);
+        agree(vec![search.closest_point(*p)], &[*p]);
     }
     assert_eq!(search.grid_summary(), (0, 0, 0));
     agree(search.closest_points(&points[1023..]), &points[1023..]);

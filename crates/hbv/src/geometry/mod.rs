@@ -1,6 +1,7 @@
 //! Geometric primitives: boxes, rays and triangles, and the exact tests between them.
 
 mod aabb;
+pub(crate) mod directed_rounding;
 mod edge_rule;
 pub(crate) mod exact_sign;
 mod ray;

@@ -3,7 +3,7 @@
 //! nearest-point search.
 //!
 //! The search decides in f64 ([`super::point_triangle`]), but most of its work is rejecting
-//! nodes by their boxes (and triangles by the enclosure bound of `triangle_packet`, compared with
+//! nodes by their boxes (and triangles by the enclosure bound of `enclosure_packet`, compared with
 //! the same threshold). Those tests are done in f32, four lanes at once
 //! (plain arrays that the compiler turns into SSE: no `unsafe`), and are made *conservative*:
 //! a box is rejected only when its real distance exceeds the best f64 distance so far, so the

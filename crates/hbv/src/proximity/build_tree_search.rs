@@ -13,16 +13,15 @@
 //! included (the smallest face id among equal distances).
 
 use glam::DVec3;
-use rayon::prelude::*;
 
+use super::answers::{AnswerRows, ClosestPoint};
+use super::batches::{assert_rows, for_each_run, run_of, BatchThreads};
 use super::box_bound::{prune_threshold, rounding_margin, Boxes, PointBracket};
-use super::closest_point::{
-    for_each_column_run, run_of, write_row, ClosestPoint, ClosestPointColumns, ClosestPointTree,
-};
+use super::nearest_point_search::NearestPointSearch;
 use super::point_triangle::closest_point_on_triangle;
 use super::prefetch::prefetch;
 use super::query_points::QueryPoints;
-use crate::batch_threads::Threads;
+use super::search_tally::Tally;
 use crate::bvh::{BuildTree, NodeContent, NodeId};
 use crate::geometry::Aabb;
 use crate::mesh::TriangleMesh;
@@ -54,51 +53,15 @@ impl<'a> BuildTreeSearch<'a> {
         }
     }
 
-    /// The nearest surface point to `p`; `None` for a point that is not finite or an empty
-    /// tree.
-    pub fn closest_point(&self, p: DVec3) -> Option<ClosestPoint> {
-        self.closest_point_with(p, &mut Vec::new())
-    }
-
-    /// The nearest surface point of each of `points`, on the current rayon pool.
-    pub fn closest_points(&self, points: &[DVec3]) -> Vec<Option<ClosestPoint>> {
-        points
-            .par_iter()
-            .with_min_len(64)
-            .map_init(Vec::new, |stack, &p| self.closest_point_with(p, stack))
-            .collect()
-    }
-
-    /// The nearest surface points of `points` written column by column into `out`, as
-    /// [`ClosestPointTree::closest_points_into`] writes them (a point without an answer gets
-    /// NaN, +∞, -1, 0, 0), runs of points shared out as `threads` says. Panics if a column's
-    /// length is not the number of points.
-    pub(super) fn closest_points_into_with<P: QueryPoints + ?Sized>(
+    /// The nearest surface point to `p` (module notes), `stack` scratch space reused between
+    /// searches, the steps counted into `tally` (nodes opened and triangles decided: a walk has
+    /// no packets).
+    fn search(
         &self,
-        points: &P,
-        out: ClosestPointColumns<'_>,
-        threads: Threads,
-    ) {
-        const RUN: usize = ClosestPointTree::RUN;
-        let columns = out.rows_for(points.count());
-        for_each_column_run(threads, columns, |r, (point, distance, prim, u, v)| {
-            let len = point.len();
-            let run = run_of(points, r * RUN, len);
-            let mut stack = Vec::new();
-            for (k, &p) in run[..len].iter().enumerate() {
-                let found = self.closest_point_with(p, &mut stack);
-                write_row(
-                    found,
-                    k,
-                    (&mut *point, &mut *distance, &mut *prim, &mut *u, &mut *v),
-                );
-            }
-        });
-    }
-
-    /// [`BuildTreeSearch::closest_point`] with `stack` as scratch space, reused between
-    /// searches.
-    fn closest_point_with(&self, p: DVec3, stack: &mut Vec<Pending>) -> Option<ClosestPoint> {
+        p: DVec3,
+        stack: &mut Vec<Pending>,
+        tally: &mut impl Tally,
+    ) -> Option<ClosestPoint> {
         let root = self.tree.root()?;
         if !p.is_finite() {
             return None;
@@ -120,6 +83,7 @@ impl<'a> BuildTreeSearch<'a> {
                         if t.is_degenerate() {
                             continue;
                         }
+                        tally.exact();
                         let q = closest_point_on_triangle(
                             p,
                             t.p0.as_dvec3(),
@@ -147,6 +111,7 @@ impl<'a> BuildTreeSearch<'a> {
                     }
                 }
                 NodeContent::Internal(children) => {
+                    tally.node();
                     // Pushed farthest first, so that the nearest is searched next.
                     let first = stack.len();
                     for &child in children.iter() {
@@ -181,6 +146,34 @@ impl<'a> BuildTreeSearch<'a> {
     }
 }
 
+impl NearestPointSearch for BuildTreeSearch<'_> {
+    fn closest_point_tallied<T: Tally>(&self, p: DVec3, tally: &mut T) -> Option<ClosestPoint> {
+        self.search(p, &mut Vec::new(), tally)
+    }
+
+    /// Runs of points shared out as `threads` says, each point walked on its own (the walk
+    /// takes no seed).
+    fn closest_points_into_with<P: QueryPoints + ?Sized, R: AnswerRows>(
+        &self,
+        points: &P,
+        out: R,
+        threads: BatchThreads,
+    ) {
+        let n = points.count();
+        assert_rows(&out, n);
+        for_each_run(threads.0, out, n, |points_of_run, mut rows| {
+            let len = points_of_run.len();
+            let run = run_of(points, points_of_run.start, len);
+            let mut stack = Vec::new();
+            for (k, &p) in run[..len].iter().enumerate() {
+                let mut tally = R::Tally::default();
+                let found = self.search(p, &mut stack, &mut tally);
+                rows.write(k, found, tally);
+            }
+        });
+    }
+}
+
 /// [`Boxes::distance_squared_lower_bounds`] of one box.
 #[inline]
 fn box_bound(b: &Aabb, bracket: &PointBracket) -> f32 {
@@ -189,4 +182,53 @@ fn box_bound(b: &Aabb, bracket: &PointBracket) -> f32 {
         max: [[b.max.x], [b.max.y], [b.max.z]],
     };
     boxes.distance_squared_lower_bounds(bracket)[0]
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
+    use crate::mesh::procedural::icosphere;
+    use crate::proximity::{closest_point_brute_force, ClosestPointsOnDemand, SearchTally};
+
+    /// The walk's batch forms (a list, with tallies, on the calling thread or the pool's)
+    /// answer as the brute force, and a counted walk counts the nodes it opens and at least
+    /// the triangle it answers with.
+    #[test]
+    fn walked_batches_and_tallies_agree_with_brute_force() {
+        let mesh = icosphere(Vec3::new(0.5, -1.0, 2.0), 1.5, 3);
+        let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+        let walk = BuildTreeSearch::new(&tree, &mesh);
+        let points: Vec<DVec3> = (0..700)
+            .map(|i| {
+                let t = i as f64;
+                DVec3::new((t * 0.37).sin(), (t * 1.91).cos(), (t * 0.13).sin() + 2.0) * 2.5
+            })
+            .chain([DVec3::NAN])
+            .collect();
+        let want: Vec<_> = points
+            .iter()
+            .map(|&p| closest_point_brute_force(&mesh, p))
+            .collect();
+        assert_eq!(walk.closest_points(&points), want);
+        let tallied = walk.closest_points_tallied(&points);
+        for ((found, tally), want) in tallied.iter().zip(&want) {
+            assert_eq!(found, want);
+            if found.is_some() {
+                assert!(tally.nodes >= 1 && tally.exact >= 1 && tally.packets == 0);
+            }
+        }
+        let mut single = SearchTally::default();
+        assert_eq!(walk.closest_point_tallied(points[3], &mut single), want[3]);
+        assert_eq!(single, tallied[3].1);
+        // On demand: one point walked, then the search tree once the walks are spent.
+        let on_demand =
+            ClosestPointsOnDemand::with_walk_limit(tree.clone().into(), mesh.clone().into(), 1);
+        assert_eq!(on_demand.closest_point(points[5]), want[5]);
+        assert!(on_demand.search_tree().is_none());
+        assert_eq!(on_demand.closest_points(&points), want);
+        assert!(on_demand.search_tree().is_some());
+    }
 }

@@ -31,9 +31,9 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::directed_rounding::f32_below;
 use super::point_triangle::{closest_point_on_flagged_triangle, TrianglePoint};
 use super::prefetch::prefetch;
+use crate::geometry::directed_rounding::f32_below;
 
 /// Settings of the candidate grid that `closest_point` queries use on meshes of a few large
 /// triangles (cells listing every triangle that can be nearest inside them; see
@@ -81,7 +81,7 @@ impl Default for CandidateGridConfig {
 
 /// One cell: `count > 0` triangles listed from `first` in the grid's candidate array, or
 /// (`count == 0`) the seed triangle `first` of a tree search. Triangles are the search tree's
-/// local ids (`LANES × packet + lane`, module `triangle_packet`).
+/// local ids (`LANES × packet + lane`, module `enclosure_packet`).
 #[derive(Clone, Copy, Debug)]
 struct Cell {
     first: u32,

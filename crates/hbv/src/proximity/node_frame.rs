@@ -19,7 +19,7 @@
 use glam::{DVec3, Vec3};
 
 use super::box_bound::PointBracket;
-use super::directed_rounding::{f32_above, f32_below};
+use crate::geometry::directed_rounding::{f32_above, f32_below};
 
 /// `1 - 2⁻¹⁶`: what a bound computed in a [`NodeFrame`] is multiplied by (it covers
 /// `σ_max² ≤ 1 + 3·2⁻²⁰` and the f32 rounding of the bound).

@@ -23,10 +23,13 @@ use std::sync::{Arc, OnceLock};
 
 use glam::DVec3;
 
+use super::answers::{AnswerRows, ClosestPoint};
+use super::batches::BatchThreads;
 use super::build_tree_search::BuildTreeSearch;
-use super::closest_point::{ClosestPoint, ClosestPointColumns, ClosestPointTree};
+use super::closest_point_tree::ClosestPointTree;
+use super::nearest_point_search::NearestPointSearch;
 use super::query_points::QueryPoints;
-use crate::batch_threads::Threads;
+use super::search_tally::Tally;
 use crate::bvh::BuildTree;
 use crate::mesh::TriangleMesh;
 
@@ -74,52 +77,6 @@ impl ClosestPointsOnDemand {
         self.search.get()
     }
 
-    /// The nearest surface point of each of `points`: by walks of the builder's tree while
-    /// they have not cost as much as making the search tree, by the search tree (made now if
-    /// need be) after; on the current rayon pool.
-    pub fn closest_points(&self, points: &[DVec3]) -> Vec<Option<ClosestPoint>> {
-        if self.search.get().is_none() && self.walk_allowed(points.len()) {
-            return self.walker().closest_points(points);
-        }
-        self.search_tree_made().closest_points(points)
-    }
-
-    /// The nearest points of `points` written column by column into `out`, as
-    /// [`ClosestPointTree::closest_points_into`] writes them: by walks of the builder's tree
-    /// while they have not cost as much as making the search tree, by the search tree (made
-    /// now if need be) after. The calling thread and the current rayon pool's threads share
-    /// the work.
-    pub fn closest_points_into<P: QueryPoints + ?Sized>(
-        &self,
-        points: &P,
-        out: ClosestPointColumns<'_>,
-    ) {
-        self.closest_points_into_with(points, out, Threads::Pool);
-    }
-
-    /// [`ClosestPointsOnDemand::closest_points_into`] on the calling thread alone.
-    pub fn closest_points_into_here<P: QueryPoints + ?Sized>(
-        &self,
-        points: &P,
-        out: ClosestPointColumns<'_>,
-    ) {
-        self.closest_points_into_with(points, out, Threads::Here);
-    }
-
-    fn closest_points_into_with<P: QueryPoints + ?Sized>(
-        &self,
-        points: &P,
-        out: ClosestPointColumns<'_>,
-        threads: Threads,
-    ) {
-        if self.search.get().is_none() && self.walk_allowed(points.count()) {
-            self.walker().closest_points_into_with(points, out, threads);
-            return;
-        }
-        self.search_tree_made()
-            .closest_points_into_with(points, out, threads);
-    }
-
     fn walker(&self) -> BuildTreeSearch<'_> {
         BuildTreeSearch::new(&self.tree, &self.mesh)
     }
@@ -130,12 +87,43 @@ impl ClosestPointsOnDemand {
             .get_or_init(|| ClosestPointTree::new(&self.tree, &self.mesh))
     }
 
-    /// Whether `n` more points may be walked (and, if so, counts them as walked).
-    fn walk_allowed(&self, n: usize) -> bool {
-        self.walked
-            .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |walked| {
-                (walked + n <= self.walk_limit).then_some(walked + n)
-            })
-            .is_ok()
+    /// Whether `n` more points are walked: the search tree has not been made, and walks of
+    /// them stay within the limit (they are then counted as walked).
+    fn walks(&self, n: usize) -> bool {
+        self.search.get().is_none()
+            && self
+                .walked
+                .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |walked| {
+                    (walked + n <= self.walk_limit).then_some(walked + n)
+                })
+                .is_ok()
+    }
+}
+
+impl NearestPointSearch for ClosestPointsOnDemand {
+    /// By a walk of the builder's tree while walks have not cost as much as making the search
+    /// tree, by the search tree (made now if need be) after.
+    fn closest_point_tallied<T: Tally>(&self, p: DVec3, tally: &mut T) -> Option<ClosestPoint> {
+        if self.walks(1) {
+            return self.walker().closest_point_tallied(p, tally);
+        }
+        self.search_tree_made().closest_point_tallied(p, tally)
+    }
+
+    /// By walks of the builder's tree while they have not cost as much as making the search
+    /// tree, by the search tree (made now if need be) after: a batch is answered by one or the
+    /// other, never both.
+    fn closest_points_into_with<P: QueryPoints + ?Sized, R: AnswerRows>(
+        &self,
+        points: &P,
+        out: R,
+        threads: BatchThreads,
+    ) {
+        if self.walks(points.count()) {
+            self.walker().closest_points_into_with(points, out, threads);
+            return;
+        }
+        self.search_tree_made()
+            .closest_points_into_with(points, out, threads);
     }
 }

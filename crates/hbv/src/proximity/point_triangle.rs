@@ -208,7 +208,7 @@ mod tests {
     }
 
     /// A sliver whose third vertex lies within 10⁻⁸ of the midpoint of its longest edge, and a
-    /// query on it (found by a soak run of the property tests, session 16): the regions'
+    /// query on it (found by a soak run of the property tests): the regions'
     /// `va`, `vb`, `vc` were rounding noise, and the answer 1.32, 1.2·10⁻⁸ or 0.085 away
     /// depending on the vertices' order.
     #[test]

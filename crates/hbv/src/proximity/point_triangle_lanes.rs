@@ -6,7 +6,7 @@
 //! **Why.** The scalar routine picks the point's Voronoi region (three vertices, three edges,
 //! the face) by up to six branches, which the CPU mispredicts often on a nearest-point query
 //! (the region changes from one triangle to the next); a search that decides several triangles
-//! per query paid for them about twice their instructions (session 5). Here every region's
+//! per query paid for them about twice their instructions (measured). Here every region's
 //! point is computed and the right one selected, four lanes of f64 side by side (one AVX
 //! register, two SSE ones without AVX).
 //!
@@ -24,7 +24,7 @@
 
 use glam::DVec3;
 
-use super::triangle_packet::LANES;
+use super::enclosure_packet::LANES;
 
 /// Triangles decided side by side.
 pub(super) const F64_LANES: usize = 4;
@@ -33,7 +33,7 @@ pub(super) const F64_LANES: usize = 4;
 /// (`a`, `b`, `c`) of the triangle in `lane`.
 type LaneTriangles = [[[f64; F64_LANES]; 3]; 3];
 
-/// A triangle packet's f32 vertices (`TrianglePacket::vertex`): `[k][axis][lane]`, [`LANES`]
+/// An enclosure packet's f32 vertices (`EnclosurePacket::vertex`): `[k][axis][lane]`, [`LANES`]
 /// lanes, decided here half a packet ([`F64_LANES`] lanes) at a time.
 pub(super) type PacketVertices = [[[f32; LANES]; 3]; 3];
 

@@ -5,9 +5,9 @@
 //! Keys are `code << 32 | index`, with a 30-bit code (10 bits per axis over the finite points'
 //! box; points with a NaN or infinite coordinate get the largest code), sorted by an LSD radix
 //! sort of the code in three 10-bit digits: three counting passes, stable, so points of equal
-//! code stay in index order. (Session 5 computed 63-bit codes, `bvh::morton`, and sorted the
-//! keys with rayon's parallel quicksort: about 290 instructions per point on the bunny's
-//! 65,536, against about 60 here.)
+//! code stay in index order. (63-bit codes, `bvh::morton`, sorted with rayon's parallel
+//! quicksort took about 290 instructions per point on the bunny's 65,536, against about 60
+//! here.)
 
 use crate::batch_threads::{map_collect, Threads};
 use glam::DVec3;

@@ -6,7 +6,7 @@
 //! back to the kernel is faulted in again page by page on the next call (glibc trims its heap
 //! once the answers' arrays are freed), and on this VM a fault costs about a microsecond:
 //! the Cornell box's five answer columns and that vector took 20–30 ns per query of faults
-//! in some processes, a third of the query's own time (`perf`, session 6).
+//! in some processes, a third of the query's own time (measured with `perf`).
 
 use glam::DVec3;
 

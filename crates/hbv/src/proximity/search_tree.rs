@@ -1,5 +1,5 @@
 //! The tree the nearest-point search walks: 8-child nodes with their children's boxes side by
-//! side ([`QuadNode`]), and leaves of [`TrianglePacket`]s, made from any builder's
+//! side ([`SearchNode`]), and leaves of [`EnclosurePacket`]s, made from any builder's
 //! [`BuildTree`].
 //!
 //! **Collapse** (as for wide ray-tracing BVHs, Wald et al. 2008, "Getting rid of packets"):
@@ -16,8 +16,8 @@ use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
 use super::box_bound::{Boxes, PointBracket};
+use super::enclosure_packet::{EnclosurePacket, LANES};
 use super::node_frame::{NodeFrame, FRAME_SHRINK};
-use super::triangle_packet::{TrianglePacket, LANES};
 use crate::bvh::{BuildTree, NodeContent, NodeId};
 use crate::geometry::Aabb;
 use crate::mesh::TriangleMesh;
@@ -43,16 +43,17 @@ impl Default for SearchTreeConfig {
 }
 
 /// Children per node: eight, one AVX register of f32 bounds (two SSE registers without AVX).
-/// Eight against four (session 5): on spot 10.4 → 6.6 nodes per query, 4,332 → 3,916
+/// Eight against four children, measured: on spot 10.4 → 6.6 nodes per query, 4,332 → 3,916
 /// instructions, about 6 % faster (bunny, teapot alike).
 pub(super) const WIDTH: usize = 8;
 
-/// [`WIDTH`] children: their boxes, and for each either a node (`triangles == 0`, `child` its index),
-/// a leaf (`triangles` of them in packets from `child`), or nothing (NaN bounds, [`Box4::NONE`]:
-/// the search never enters such a slot).
+/// A node of the search tree: its [`WIDTH`] (eight) children's boxes side by side, and for each
+/// child either a node (`triangles == 0`, `child` its index), a leaf (`triangles` of them in
+/// packets from `child`), or nothing (NaN bounds, [`Boxes::NONE`]: the search never enters such
+/// a slot). Named for the tree it belongs to rather than its width, which is [`WIDTH`]'s to say.
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-pub(super) struct QuadNode {
+pub(super) struct SearchNode {
     pub bounds: Boxes<WIDTH>,
     pub child: [u32; WIDTH],
     pub triangles: [u32; WIDTH],
@@ -60,8 +61,8 @@ pub(super) struct QuadNode {
     pub frame: Option<NodeFrame>,
 }
 
-impl QuadNode {
-    const EMPTY: QuadNode = QuadNode {
+impl SearchNode {
+    const EMPTY: SearchNode = SearchNode {
         bounds: Boxes::NONE,
         child: [0; WIDTH],
         triangles: [0; WIDTH],
@@ -94,8 +95,8 @@ impl QuadNode {
 /// coordinate magnitude of the triangles kept (for the rounding margin of the search).
 #[derive(Clone, Debug, Default)]
 pub(super) struct SearchTree {
-    pub nodes: Vec<QuadNode>,
-    pub packets: Vec<TrianglePacket>,
+    pub nodes: Vec<SearchNode>,
+    pub packets: Vec<EnclosurePacket>,
     pub mesh_scale: f64,
 }
 
@@ -133,7 +134,7 @@ impl SearchTree {
         // Nodes to try a rotated frame for: (node, its slots, their aligned boxes, the slots
         // given a child), decided in parallel once the shape is known.
         let mut frame_trials: Vec<(usize, Vec<Slot>, Vec<SlotBox>, u32)> = Vec::new();
-        search.nodes.push(QuadNode::EMPTY);
+        search.nodes.push(SearchNode::EMPTY);
         let mut pending: Vec<(Vec<NodeId>, usize)> = vec![(vec![root], 0)];
         while let Some((members, index)) = pending.pop() {
             let slots = search.slots_of(tree, &below, leaf_max, members);
@@ -174,7 +175,7 @@ impl SearchTree {
                     Slot::Group(ids) => ids,
                 };
                 let child = search.nodes.len();
-                search.nodes.push(QuadNode::EMPTY);
+                search.nodes.push(SearchNode::EMPTY);
                 let node = &mut search.nodes[index];
                 node.set_bounds(k, boxes[k]);
                 node.child[k] = child as u32;
@@ -206,7 +207,7 @@ impl SearchTree {
         search.packets = planned
             .groups
             .par_iter()
-            .map(|group| TrianglePacket::new(&planned.triangles[group.clone()]))
+            .map(|group| EnclosurePacket::new(&planned.triangles[group.clone()]))
             .collect();
         search
     }

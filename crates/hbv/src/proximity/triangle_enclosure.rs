@@ -24,11 +24,11 @@
 //! exact f32 vertices with `n / |n|`, raised by `2⁻⁴⁰`–`2⁻²⁴` of the magnitudes involved (the
 //! f64 rounding, and the cancellation in `|w|² - h²`), and rounded up to f32, so that the
 //! triangle is inside. The query's f32 rounding is accounted for in
-//! [`super::triangle_packet::TrianglePacket::distance_squared_lower_bounds`].
+//! [`super::enclosure_packet::EnclosurePacket::distance_squared_lower_bounds`].
 
 use glam::{DVec3, Vec3};
 
-use super::directed_rounding::f32_above;
+use crate::geometry::directed_rounding::f32_above;
 
 /// The enclosure of one triangle (module notes), in f32.
 #[derive(Clone, Copy, Debug)]

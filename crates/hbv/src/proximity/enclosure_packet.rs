@@ -1,5 +1,6 @@
-//! [`LANES`] triangles side by side (structure of arrays), the leaf storage of the nearest-point
-//! search: one f32 pass bounds all their distances from below (the distance to each triangle's
+//! [`LANES`] triangles side by side (structure of arrays) with their enclosures, the leaf storage
+//! of the nearest-point search (unrelated to the wide ray layout's four-triangle
+//! `TrianglePacket`): one f32 pass bounds all their distances from below (the distance to each triangle's
 //! enclosure, module `triangle_enclosure`: exact for points above the face, beside an edge,
 //! and most points beside a vertex), and only the triangles the bound cannot reject go to the
 //! exact f64 routine.
@@ -17,13 +18,14 @@ use super::triangle_enclosure::TriangleEnclosure;
 /// without AVX).
 pub(super) const LANES: usize = 8;
 
-/// Up to [`LANES`] triangles: `vertex[k][axis][lane]` is coordinate `axis` of vertex `k` of the
+/// Up to [`LANES`] triangles and their enclosures, the unit a search-tree leaf is made of:
+/// `vertex[k][axis][lane]` is coordinate `axis` of vertex `k` of the
 /// triangle in `lane`, `prim[lane]` its face id, and their [`TriangleEnclosure`]s lane by lane.
 /// Unused lanes repeat lane 0 (the search never reads them: a leaf knows how many triangles it
 /// has).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(64))]
-pub(super) struct TrianglePacket {
+pub(super) struct EnclosurePacket {
     pub vertex: [[[f32; LANES]; 3]; 3],
     pub prim: [u32; LANES],
     /// Some triangle lies in a plane of constant x, y or z: its box is flat, and the box bound
@@ -46,10 +48,10 @@ pub(super) struct TrianglePacket {
     pub reach_slack: [f32; LANES],
 }
 
-impl TrianglePacket {
+impl EnclosurePacket {
     /// Packs up to [`LANES`] `(face id, vertices)` triangles; `triangles` must not be empty.
     pub fn new(triangles: &[(u32, [glam::Vec3; 3])]) -> Self {
-        let mut packet = TrianglePacket {
+        let mut packet = EnclosurePacket {
             vertex: [[[0.0; LANES]; 3]; 3],
             prim: [0; LANES],
             axis_aligned: triangles
@@ -133,12 +135,12 @@ impl TrianglePacket {
     }
 
     /// Conservative lower bounds of the squared distances from the bracketed point to the
-    /// packet's triangles: [`TrianglePacket::enclosure_lower_bounds`], and for a packet with an
+    /// packet's triangles: [`EnclosurePacket::enclosure_lower_bounds`], and for a packet with an
     /// axis-aligned triangle the larger of that and the distance to each triangle's bounding box
     /// ([`Box4::distance_squared_lower_bounds`]).
     ///
-    /// (Session 5 replaced the support-function bound of sessions 3–4, `min_k u·(p - v_k)/|u|`
-    /// with `u = p - centroid`: on spot 8.1 → 5.6 exact tests per query, 1.36 → 1.47 M
+    /// (Against the support-function bound `min_k u·(p - v_k)/|u|` with `u = p - centroid`,
+    /// which the enclosures replaced: on spot 8.1 → 5.6 exact tests per query, 1.36 → 1.47 M
     /// queries/s on one thread; teapot 15.3 → 7.2 exact tests.)
     #[inline(always)]
     pub fn distance_squared_lower_bounds(&self, p: &PointBracket) -> [f32; LANES] {
@@ -286,7 +288,7 @@ mod tests {
                 .collect();
             // Degenerate triangles never reach a packet.
             prop_assume!(tris.iter().all(|(_, [a, b, c])| (*b - *a).cross(*c - *a).length_squared() > 0.0));
-            let packet = TrianglePacket::new(&tris);
+            let packet = EnclosurePacket::new(&tris);
             let p = (tris[0].1[0].as_dvec3() + offset.as_dvec3() * (size as f64 * reach as f64))
                 + DVec3::new(1e-9, -3e-10, 0.0) * size as f64;
             let bracket = PointBracket::new(p);
@@ -335,7 +337,7 @@ mod tests {
                 if (b - a).cross(c - a).length_squared() == 0.0 {
                     return Ok(());
                 }
-                let packet = TrianglePacket::new(&[(0, [a, b, c])]);
+                let packet = EnclosurePacket::new(&[(0, [a, b, c])]);
                 let normal = (b - a).cross(c - a).normalize().as_dvec3();
                 // On the line through the long edge (beyond it when `lift` is outside [0, 1]),
                 // then lifted off the plane.
@@ -364,7 +366,7 @@ mod tests {
                 Vec3::new(0.0, 1.0, 0.0),
             ],
         );
-        let packet = TrianglePacket::new(&[tri]);
+        let packet = EnclosurePacket::new(&[tri]);
         let bound = |p: DVec3| packet.enclosure_lower_bounds(&PointBracket::new(p))[0] as f64;
         let exact = |p: DVec3| {
             let q = closest_point_on_triangle(p, DVec3::ZERO, DVec3::X, DVec3::Y);

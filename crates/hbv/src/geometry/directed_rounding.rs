@@ -1,9 +1,9 @@
 //! f64 values rounded to f32 in a chosen direction: the conservative bounds of the nearest-point
-//! search are computed in f64 and stored in f32, each rounded the way that keeps it a bound
-//! (a lower bound down, an upper bound or an enclosure's extent up).
+//! search (`proximity`) are computed in f64 and stored in f32, each rounded the way that keeps
+//! it a bound (a lower bound down, an upper bound or an enclosure's extent up).
 
 /// The largest f32 not above `x`.
-pub(super) fn f32_below(x: f64) -> f32 {
+pub(crate) fn f32_below(x: f64) -> f32 {
     let near = x as f32;
     if (near as f64) > x {
         near.next_down()
@@ -13,7 +13,7 @@ pub(super) fn f32_below(x: f64) -> f32 {
 }
 
 /// The least f32 not below `x`.
-pub(super) fn f32_above(x: f64) -> f32 {
+pub(crate) fn f32_above(x: f64) -> f32 {
     let near = x as f32;
     if (near as f64) < x {
         near.next_up()
