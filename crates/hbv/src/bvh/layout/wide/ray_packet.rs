@@ -11,7 +11,7 @@
 //! ([`BeamLimit`]), walk the tree once:
 //!
 //! - at a node, each child's box is tested against the eight rays at once: the single-ray slab
-//!   test ([`box_scalar`](super::super::wide_kernels::box_scalar)) lane by lane, with the box's
+//!   test ([`box_scalar`](super::box_kernels::box_scalar)) lane by lane, with the box's
 //!   planes broadcast and each ray's origin, reciprocal and margins in its lane;
 //! - a child is visited by the rays that meet it (its lane mask), nearest first by the least
 //!   entry distance among them; a postponed child keeps its eight entry distances, and on pop
@@ -32,11 +32,11 @@
 
 use std::arch::x86_64::*;
 
+use super::box_kernels::{LaneBoxes, Lanes};
 use super::root_filter::{RayColumns, RootTest};
 use super::traversal::{Step, Traversal};
 use super::{undecided_lane, AvxBoxes, TrianglePacket, WideLayout, LEAF};
 use crate::bvh::layout::stack::TraversalStack;
-use crate::bvh::layout::wide_kernels::{LaneBoxes, Lanes};
 use crate::geometry::{Aabb, EdgeRule, PreparedRay, Ray, Triangle, DEPTH_FLOOR, SHARED_EDGE_ERROR};
 use crate::query::Hit;
 use crate::stats::NoCount;
@@ -405,7 +405,7 @@ unsafe fn test_triangle(
 /// The eight children's boxes of a node against the rays of `rays` (a lane mask), whose box
 /// intervals end at `box_tmax`: for each child, the rays that meet it and their entry
 /// distances, by the single-ray slab test
-/// ([`box_scalar`](super::super::wide_kernels::box_scalar)) lane by lane. (Every slot is
+/// ([`box_scalar`](super::box_kernels::box_scalar)) lane by lane. (Every slot is
 /// tested, empty ones too: skipping them cost more in branches than it saved.)
 #[target_feature(enable = "avx2")]
 #[inline]

@@ -13,10 +13,10 @@
 //! triangle tests, order of children, culling — so its answer is exactly [`WideLayout`]'s
 //! single-ray answer; only the order in which rays' steps are taken differs.
 
+use super::box_kernels::Lanes;
 use super::root_filter::RayCursor;
 use super::traversal::{Step, Traversal};
 use super::{BoxKernel, WideLayout};
-use crate::bvh::layout::wide_kernels::Lanes;
 use crate::geometry::{PreparedRay, Ray};
 use crate::stats::NoCount;
 use std::mem::MaybeUninit;

@@ -2,9 +2,9 @@
 //! the single-ray queries run it to the end at once, the batch queries interleave several
 //! (`stream.rs`). Both therefore take exactly the same steps for a ray.
 
+use super::box_kernels::{box_scalar, BoxRay};
 use super::{BoxKernel, WideLayout, LEAF, LEAF_COUNT_SHIFT, LEAF_FIRST_MASK};
 use crate::bvh::layout::stack::TraversalStack;
-use crate::bvh::layout::wide_kernels::{box_scalar, BoxRay};
 use crate::geometry::{PreparedRay, Ray};
 use crate::stats::Counter;
 

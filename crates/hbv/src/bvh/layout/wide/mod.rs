@@ -1,5 +1,7 @@
 //! Wide nodes: 4 or 8 children per node, their boxes tested together with SIMD.
 
+mod all_hits;
+mod box_kernels;
 #[cfg(target_arch = "x86_64")]
 mod ray_packet;
 mod root_filter;
@@ -13,12 +15,12 @@ pub(super) use triangle_packet::TrianglePacket;
 
 use super::binarize::binary_form;
 use super::stack::TraversalStack;
-use super::wide_kernels::{BoxRay, LaneBoxes, Lanes};
 use crate::bvh::tree::{BuildTree, NodeId};
 use crate::geometry::{Aabb, EdgeRule, PreparedRay, Ray, TriangleHit};
 use crate::mesh::TriangleMesh;
 use crate::query::{record_hit, Hit, TraversalKernel};
 use crate::stats::{Counter, NoCount};
+use box_kernels::{BoxRay, LaneBoxes, Lanes};
 
 /// Bit 31 of a child reference: the child is a leaf.
 const LEAF: u32 = 1 << 31;
@@ -146,7 +148,7 @@ impl<const W: usize> WideLayout<W> {
 
     /// Whether the traversals run the AVX kernels (8-wide nodes on a CPU with AVX; only then is
     /// an AVX entry point called). Callers outside this module that pass a leaf visitor write it
-    /// in a function compiled with AVX then (see `wide_all_hits.rs`).
+    /// in a function compiled with AVX then (see `all_hits.rs`).
     pub(super) fn traverses_with_avx(&self) -> bool {
         W == 8 && self.use_avx
     }
@@ -520,7 +522,7 @@ impl<const W: usize> BoxKernel<W> for SseBoxes {
         let mut mask = 0;
         let mut entry = [0.0f32; W];
         for offset in (0..W).step_by(4) {
-            let (m, e) = super::wide_kernels::boxes_sse(boxes, offset, ray, tmin, tmax);
+            let (m, e) = box_kernels::boxes_sse(boxes, offset, ray, tmin, tmax);
             mask |= m << offset;
             entry[offset..offset + 4].copy_from_slice(&e);
         }
@@ -541,7 +543,7 @@ impl<const W: usize> BoxKernel<W> for AvxBoxes {
         // SAFETY: W == 8, so the cast is to the same type; the AVX kernel is only reached through
         // `WideLayout::*_avx`, which run only when the CPU reported AVX.
         let boxes8 = unsafe { &*(boxes as *const LaneBoxes<W> as *const LaneBoxes<8>) };
-        let (mask, e) = unsafe { super::wide_kernels::boxes_avx(boxes8, ray, tmin, tmax) };
+        let (mask, e) = unsafe { box_kernels::boxes_avx(boxes8, ray, tmin, tmax) };
         let mut entry = [0.0f32; W];
         entry.copy_from_slice(&e);
         (mask, entry)
@@ -564,7 +566,7 @@ struct ScalarBoxes;
 impl<const W: usize> BoxKernel<W> for ScalarBoxes {
     #[inline(always)]
     fn test(boxes: &LaneBoxes<W>, ray: &BoxRay, tmin: f32, tmax: f32) -> (u32, [f32; W]) {
-        super::wide_kernels::boxes_scalar(boxes, ray, tmin, tmax)
+        box_kernels::boxes_scalar(boxes, ray, tmin, tmax)
     }
 }
 

@@ -1,8 +1,8 @@
 //! Every hit along a ray through the wide layout: one traversal that visits every leaf the
 //! ray's full interval reaches and keeps every triangle hit.
 
-use super::wide::{undecided_lane, TrianglePacket, WideLayout};
-use super::wide_kernels::Lanes;
+use super::box_kernels::Lanes;
+use super::{undecided_lane, TrianglePacket, WideLayout};
 use crate::all_hits::{sort_hits, AllHits};
 use crate::geometry::{EdgeRule, PreparedRay, Ray};
 use crate::query::Hit;
