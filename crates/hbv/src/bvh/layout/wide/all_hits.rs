@@ -2,7 +2,8 @@
 //! ray's full interval reaches and keeps every triangle hit.
 
 use super::box_kernels::Lanes;
-use super::{undecided_lane, TrianglePacket, WideLayout};
+use super::leaf::undecided_lane;
+use super::{TrianglePacket, WideLayout};
 use crate::all_hits::{sort_hits, AllHits};
 use crate::geometry::{EdgeRule, PreparedRay, Ray};
 use crate::query::Hit;

@@ -33,9 +33,12 @@
 use std::arch::x86_64::*;
 
 use super::box_kernels::{LaneBoxes, Lanes};
+use super::kernels::AvxBoxes;
+use super::leaf::undecided_lane;
+use super::node::LEAF;
 use super::root_filter::{RayColumns, RootTest};
 use super::traversal::{Step, Traversal};
-use super::{undecided_lane, AvxBoxes, TrianglePacket, WideLayout, LEAF};
+use super::{TrianglePacket, WideLayout};
 use crate::bvh::layout::stack::TraversalStack;
 use crate::geometry::{Aabb, EdgeRule, PreparedRay, Ray, Triangle, DEPTH_FLOOR, SHARED_EDGE_ERROR};
 use crate::query::Hit;

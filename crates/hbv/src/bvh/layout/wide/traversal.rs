@@ -3,7 +3,9 @@
 //! (`stream.rs`). Both therefore take exactly the same steps for a ray.
 
 use super::box_kernels::{box_scalar, BoxRay};
-use super::{BoxKernel, WideLayout, LEAF, LEAF_COUNT_SHIFT, LEAF_FIRST_MASK};
+use super::kernels::BoxKernel;
+use super::node::{LEAF, LEAF_COUNT_SHIFT, LEAF_FIRST_MASK};
+use super::WideLayout;
 use crate::bvh::layout::stack::TraversalStack;
 use crate::geometry::{PreparedRay, Ray};
 use crate::stats::Counter;

@@ -1,0 +1,291 @@
+//! The wide layout's queries: closest hit and any hit, one ray at a time or in batches, and the
+//! traversal of every leaf a ray reaches. Each query chooses its kernel once, at its top.
+
+#[cfg(target_arch = "x86_64")]
+use super::kernels::AvxBoxes;
+use super::kernels::{BoxKernel, DefaultBoxes};
+#[cfg(target_arch = "x86_64")]
+use super::ray_packet;
+use super::stream;
+use super::traversal::{Step, Traversal};
+use super::{TrianglePacket, WideLayout};
+use crate::geometry::{PreparedRay, Ray};
+use crate::query::{Hit, TraversalKernel};
+use crate::stats::{Counter, NoCount};
+
+impl<const W: usize> WideLayout<W> {
+    /// One ray's traversal (valid: checked by the caller), nearest child first when
+    /// `NEAREST_FIRST`: each leaf reached goes to `visit_leaf(first_packet, packet_count, ray,
+    /// counter)`, which returns `true` to stop. See [`Traversal::step`].
+    #[inline(always)]
+    fn traverse<C: Counter, K: BoxKernel<W>, const NEAREST_FIRST: bool>(
+        &self,
+        ray: &Ray,
+        counter: &mut C,
+        mut visit_leaf: impl FnMut(usize, usize, &mut PreparedRay, &mut C) -> bool,
+    ) {
+        let Some(mut traversal) = Traversal::start(self, ray, counter) else {
+            return;
+        };
+        while let Step::Continue =
+            traversal.step::<W, C, K, NEAREST_FIRST, false>(self, counter, &mut visit_leaf)
+        {
+        }
+    }
+}
+
+impl<const W: usize> WideLayout<W> {
+    #[inline(always)]
+    fn closest_hit_with<C: Counter, K: BoxKernel<W>>(
+        &self,
+        ray: &Ray,
+        counter: &mut C,
+    ) -> Option<Hit> {
+        let mut best = None;
+        self.traverse::<C, K, true>(ray, counter, |first, count, ray, counter| {
+            self.closest_hit_in_leaf(first, count, ray, &mut best, counter);
+            false
+        });
+        best
+    }
+
+    #[inline(always)]
+    fn any_hit_with<C: Counter, K: BoxKernel<W>>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
+        let mut found = None;
+        self.traverse::<C, K, false>(ray, counter, |first, count, ray, counter| {
+            found = self.any_hit_in_leaf(first, count, ray, counter);
+            found.is_some()
+        });
+        found
+    }
+
+    /// Whether `origin` lies outside the tree's box (or the tree is empty).
+    #[inline(always)]
+    fn starts_outside_tree(&self, origin: glam::Vec3) -> bool {
+        self.root.as_ref().is_some_and(|(_, bounds, _)| {
+            !(bounds.min.cmple(origin).all() && origin.cmple(bounds.max).all())
+        })
+    }
+
+    /// The order in which an any-hit batch takes a node's children: nearest first when most of
+    /// its rays start outside the tree's box, judged from 16 of them spread over the batch, in
+    /// lane order (no sorting) otherwise. One order for the batch, so that its loop does not
+    /// choose per step; a sample is enough for a choice of speed (checking every ray cost 25
+    /// instructions a ray).
+    ///
+    /// Which child holds a blocker first cannot be known, and sorting costs instructions. A
+    /// ray from outside (a camera's, a sensor's, sunlight) meets the surface facing it first,
+    /// and nearest first finds it sooner: camera rays +5–11%, rays from a sphere around the
+    /// mesh +1–6% (BENCHMARKS.md, session 10). A ray that leaves a surface (a shadow or bounce
+    /// ray) meets its blockers in no such order, and there the sorting made it 16–22% slower.
+    /// Either order finds a blocker if there is one: only the speed, and which blocker is
+    /// reported, depend on it. (Single rays keep lane order: the renderer's shadow rays leave
+    /// surfaces, and choosing per ray cost their kernel 2% more instructions.)
+    #[inline(always)]
+    pub(super) fn mostly_from_outside(&self, rays: &[Ray]) -> bool {
+        const SAMPLE: usize = 16;
+        let stride = rays.len().div_ceil(SAMPLE).max(1);
+        let (sampled, outside) = rays.iter().step_by(stride).fold((0, 0), |(n, out), r| {
+            (n + 1, out + usize::from(self.starts_outside_tree(r.origin)))
+        });
+        2 * outside > sampled
+    }
+
+    /// The closest-hit traversal compiled with AVX. Call only when the CPU has AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn closest_hit_avx<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
+        self.closest_hit_with::<C, AvxBoxes>(ray, counter)
+    }
+
+    /// The any-hit traversal compiled with AVX. Call only when the CPU has AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn any_hit_avx<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
+        self.any_hit_with::<C, AvxBoxes>(ray, counter)
+    }
+}
+
+impl<const W: usize> WideLayout<W> {
+    /// Calls `visit` with the triangle packets of every leaf whose box the ray's whole interval
+    /// reaches (the interval is never shrunk), in any-hit order: the traversal of the queries
+    /// that want every hit. The ray is valid (checked by the caller).
+    pub(super) fn for_each_leaf_reached(
+        &self,
+        ray: &Ray,
+        mut visit: impl FnMut(&[TrianglePacket], &PreparedRay),
+    ) {
+        #[cfg(target_arch = "x86_64")]
+        if self.traverses_with_avx() {
+            // SAFETY: `use_avx` is set only when the CPU reported AVX.
+            return unsafe { self.for_each_leaf_reached_avx(ray, &mut visit) };
+        }
+        self.for_each_leaf_reached_with::<DefaultBoxes>(ray, &mut visit)
+    }
+
+    #[inline(always)]
+    fn for_each_leaf_reached_with<K: BoxKernel<W>>(
+        &self,
+        ray: &Ray,
+        visit: &mut impl FnMut(&[TrianglePacket], &PreparedRay),
+    ) {
+        self.traverse::<NoCount, K, false>(ray, &mut NoCount, |first, count, ray, _| {
+            visit(&self.packets[first..first + count], ray);
+            false
+        });
+    }
+
+    /// The all-leaves traversal compiled with AVX. Call only when the CPU has AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn for_each_leaf_reached_avx(
+        &self,
+        ray: &Ray,
+        visit: &mut impl FnMut(&[TrianglePacket], &PreparedRay),
+    ) {
+        self.for_each_leaf_reached_with::<AvxBoxes>(ray, visit)
+    }
+}
+
+impl<const W: usize> TraversalKernel for WideLayout<W> {
+    fn closest_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
+        #[cfg(target_arch = "x86_64")]
+        if self.traverses_with_avx() {
+            // SAFETY: `use_avx` is set only when the CPU reported AVX.
+            return unsafe { self.closest_hit_avx(ray, counter) };
+        }
+        self.closest_hit_with::<C, DefaultBoxes>(ray, counter)
+    }
+
+    fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
+        self.any_hit_prim(ray, counter).is_some()
+    }
+
+    fn any_hit_prim<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
+        #[cfg(target_arch = "x86_64")]
+        if self.traverses_with_avx() {
+            // SAFETY: `use_avx` is set only when the CPU reported AVX.
+            return unsafe { self.any_hit_avx(ray, counter) };
+        }
+        self.any_hit_with::<C, DefaultBoxes>(ray, counter)
+    }
+
+    fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        #[cfg(target_arch = "x86_64")]
+        if self.packets_of_rays {
+            // SAFETY: set only on a CPU that reported AVX and AVX2.
+            return unsafe { self.closest_hits_avx2(rays, hits) };
+        }
+        #[cfg(target_arch = "x86_64")]
+        if self.traverses_with_avx() {
+            // SAFETY: `use_avx` is set only when the CPU reported AVX.
+            return unsafe { self.closest_hits_avx(rays, hits) };
+        }
+        let block = self.root_block::<DefaultBoxes, _>();
+        self.trace_batch::<DefaultBoxes, _, true>(rays, hits, stream::closest_leaf_visit!(), block)
+    }
+
+    fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
+        // Chosen before the kernel is entered, so that each kernel holds one traversal loop.
+        let nearest_first = self.mostly_from_outside(rays);
+        #[cfg(target_arch = "x86_64")]
+        if self.packets_of_rays {
+            // SAFETY: set only on a CPU that reported AVX and AVX2.
+            return unsafe {
+                if nearest_first {
+                    self.any_hits_avx2::<true>(rays, occluders)
+                } else {
+                    self.any_hits_avx2::<false>(rays, occluders)
+                }
+            };
+        }
+        #[cfg(target_arch = "x86_64")]
+        if self.traverses_with_avx() {
+            // SAFETY: `use_avx` is set only when the CPU reported AVX.
+            return unsafe {
+                if nearest_first {
+                    self.any_hits_avx::<true>(rays, occluders)
+                } else {
+                    self.any_hits_avx::<false>(rays, occluders)
+                }
+            };
+        }
+        let (visit, block) = (
+            stream::any_leaf_visit!(),
+            self.root_block::<DefaultBoxes, _>(),
+        );
+        if nearest_first {
+            self.trace_batch::<DefaultBoxes, _, true>(rays, occluders, visit, block)
+        } else {
+            self.trace_batch::<DefaultBoxes, _, false>(rays, occluders, visit, block)
+        }
+    }
+}
+
+impl<const W: usize> WideLayout<W> {
+    /// The closest-hit batch compiled with AVX. Call only when the CPU has AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn closest_hits_avx(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        let block = self.root_block::<AvxBoxes, _>();
+        self.trace_batch::<AvxBoxes, _, true>(rays, hits, stream::closest_leaf_visit!(), block)
+    }
+
+    /// The closest-hit batch with packets of coherent rays ([`ray_packet`]), compiled with
+    /// AVX2. Call only when [`WideLayout::packets_of_rays`] is set (8-wide, AVX2).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn closest_hits_avx2(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        // SAFETY: `packets_of_rays` is set only for W == 8: the cast is to the same type.
+        let layout = unsafe { &*(self as *const Self as *const WideLayout<8>) };
+        let Some(limit) = layout.beam_limit() else {
+            return hits.fill(None);
+        };
+        // SAFETY (the closure): compiled with AVX2, as this function is.
+        let block = |eight: &[Ray; 8], out: &mut [Option<Hit>]| unsafe {
+            layout.packet_block::<ray_packet::ClosestHits>(eight, out, &limit)
+        };
+        self.trace_batch::<AvxBoxes, _, true>(rays, hits, stream::closest_leaf_visit!(), block)
+    }
+
+    /// The any-hit batch with packets of coherent rays, as
+    /// [`WideLayout::closest_hits_avx2`]; single rays take children nearest first or in lane
+    /// order, packets nearest first.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn any_hits_avx2<const NEAREST_FIRST: bool>(
+        &self,
+        rays: &[Ray],
+        occluders: &mut [Option<u32>],
+    ) {
+        // SAFETY: `packets_of_rays` is set only for W == 8: the cast is to the same type.
+        let layout = unsafe { &*(self as *const Self as *const WideLayout<8>) };
+        let Some(limit) = layout.beam_limit() else {
+            return occluders.fill(None);
+        };
+        // SAFETY (the closure): compiled with AVX2, as this function is.
+        let block = |eight: &[Ray; 8], out: &mut [Option<u32>]| unsafe {
+            layout.packet_block::<ray_packet::Occluders>(eight, out, &limit)
+        };
+        let visit = stream::any_leaf_visit!();
+        self.trace_batch::<AvxBoxes, _, NEAREST_FIRST>(rays, occluders, visit, block)
+    }
+
+    /// The any-hit batch compiled with AVX, children nearest first or in lane order. Call
+    /// only when the CPU has AVX.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx")]
+    unsafe fn any_hits_avx<const NEAREST_FIRST: bool>(
+        &self,
+        rays: &[Ray],
+        occluders: &mut [Option<u32>],
+    ) {
+        let block = self.root_block::<AvxBoxes, _>();
+        self.trace_batch::<AvxBoxes, _, NEAREST_FIRST>(
+            rays,
+            occluders,
+            stream::any_leaf_visit!(),
+            block,
+        )
+    }
+}
