@@ -2,7 +2,7 @@
 //! binary nodes (the child of largest surface area opened first), each leaf's triangles packed
 //! in fours.
 
-use super::kernels::{detect_avx, detect_avx2};
+use super::kernels::Kernels;
 use super::node::{WideNode, LEAF, LEAF_COUNT_SHIFT, LEAF_FIRST_MASK, MAX_LEAF_TRIANGLES};
 use super::prefetch::PREFETCH_ABOVE_BYTES;
 use super::stream::INTERLEAVE_ABOVE_BYTES;
@@ -25,8 +25,7 @@ impl<const W: usize> WideLayout<W> {
             nodes: Vec::new(),
             packets: Vec::new(),
             root: None,
-            use_avx: detect_avx(),
-            packets_of_rays: W == 8 && detect_avx2(),
+            kernels: Kernels::for_this_cpu(W, true),
             packet_extent: 0.0,
             prefetch: false,
             interleave: false,

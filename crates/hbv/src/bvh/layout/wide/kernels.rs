@@ -1,28 +1,55 @@
-//! The instruction sets the wide layout's traversals are compiled for: how a traversal tests the
-//! `W` boxes of a node ([`BoxKernel`]), per instruction set.
+//! The instruction sets the wide layout's traversals are compiled for, and the choice among them.
+//!
+//! Each traversal is monomorphized for one way of testing a node's `W` boxes ([`BoxKernel`]):
+//! the AVX one sits in functions compiled with AVX, so that its box test is inlined into the
+//! loop. Which one a layout's queries run ([`Kernels`]) is decided once, when the layout is made,
+//! from what the CPU has; each query branches on it once, at its top, never per node. The AVX
+//! kernels exist for 8-wide nodes only (`AvxBoxes` tests `LaneBoxes<8>`), so a 4-wide layout
+//! cannot reach them: the compiler checks it.
 
 use super::box_kernels::{self, BoxRay, LaneBoxes};
 use super::root_filter;
 use crate::geometry::{Aabb, Ray};
 
-pub(super) fn detect_avx2() -> bool {
+/// Which compiled traversals a layout's queries run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Kernels {
+    /// SSE box tests, four lanes at a time (the x86_64 baseline), or their scalar twin on other
+    /// CPUs: every 4-wide layout, and 8-wide ones on a CPU without AVX.
+    Baseline,
+    /// 8-wide nodes on a CPU with AVX: eight boxes tested at once, every traversal compiled
+    /// with AVX.
     #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx") && std::arch::is_x86_feature_detected!("avx2")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+    Avx,
+    /// As [`Kernels::Avx`], and batches trace coherent runs of eight rays as packets, one ray
+    /// per AVX lane ([`ray_packet`](super::ray_packet)): 8-wide nodes on a CPU with AVX2.
+    #[cfg(target_arch = "x86_64")]
+    AvxRayPackets,
 }
 
-pub(super) fn detect_avx() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx")
+impl Kernels {
+    /// The fastest kernels for nodes `width` wide on this CPU, with packets of rays where the
+    /// CPU allows them and `ray_packets` asks for them.
+    pub fn for_this_cpu(width: usize, ray_packets: bool) -> Self {
+        #[cfg(target_arch = "x86_64")]
+        if width == 8 && std::arch::is_x86_feature_detected!("avx") {
+            return if ray_packets && std::arch::is_x86_feature_detected!("avx2") {
+                Self::AvxRayPackets
+            } else {
+                Self::Avx
+            };
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = (width, ray_packets);
+        Self::Baseline
     }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
+
+    /// Whether batches trace packets of coherent rays.
+    pub fn traces_ray_packets(self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        if self == Self::AvxRayPackets {
+            return true;
+        }
         false
     }
 }
@@ -64,23 +91,19 @@ impl<const W: usize> BoxKernel<W> for SseBoxes {
     }
 }
 
-/// AVX, eight lanes at once; used only for `W == 8` on CPUs with AVX, from functions compiled
-/// with AVX enabled.
+/// AVX, eight lanes at once: 8-wide nodes only, on CPUs with AVX ([`Kernels::Avx`]), from
+/// functions compiled with AVX enabled.
 #[cfg(target_arch = "x86_64")]
 pub(super) struct AvxBoxes;
 
 #[cfg(target_arch = "x86_64")]
-impl<const W: usize> BoxKernel<W> for AvxBoxes {
+impl BoxKernel<8> for AvxBoxes {
     #[inline(always)]
-    fn test(boxes: &LaneBoxes<W>, ray: &BoxRay, tmin: f32, tmax: f32) -> (u32, [f32; W]) {
-        assert!(W == 8);
-        // SAFETY: W == 8, so the cast is to the same type; the AVX kernel is only reached through
-        // `WideLayout::*_avx`, which run only when the CPU reported AVX.
-        let boxes8 = unsafe { &*(boxes as *const LaneBoxes<W> as *const LaneBoxes<8>) };
-        let (mask, e) = unsafe { box_kernels::boxes_avx(boxes8, ray, tmin, tmax) };
-        let mut entry = [0.0f32; W];
-        entry.copy_from_slice(&e);
-        (mask, entry)
+    fn test(boxes: &LaneBoxes<8>, ray: &BoxRay, tmin: f32, tmax: f32) -> (u32, [f32; 8]) {
+        // SAFETY: this kernel is reached only through the `*_avx` entry points of
+        // `WideLayout<8>` (`queries.rs`), which run only when the layout's `Kernels` say AVX,
+        // chosen only when the CPU reported it.
+        unsafe { box_kernels::boxes_avx(boxes, ray, tmin, tmax) }
     }
 
     const ROOT_FILTER_EXACT: bool = true;
@@ -104,7 +127,9 @@ impl<const W: usize> BoxKernel<W> for ScalarBoxes {
     }
 }
 
+/// The box kernel of [`Kernels::Baseline`].
 #[cfg(target_arch = "x86_64")]
-pub(super) type DefaultBoxes = SseBoxes;
+pub(super) type BaselineBoxes = SseBoxes;
+/// The box kernel of [`Kernels::Baseline`].
 #[cfg(not(target_arch = "x86_64"))]
-pub(super) type DefaultBoxes = ScalarBoxes;
+pub(super) type BaselineBoxes = ScalarBoxes;

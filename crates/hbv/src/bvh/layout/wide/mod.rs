@@ -17,7 +17,7 @@ mod traversal;
 mod triangle_packet;
 
 use crate::geometry::Aabb;
-use kernels::detect_avx2;
+use kernels::Kernels;
 use node::WideNode;
 use triangle_packet::TrianglePacket;
 
@@ -32,9 +32,9 @@ use triangle_packet::TrianglePacket;
 /// 2017, tested 3–4% fewer boxes per ray but traced 5–15% slower here: BENCHMARKS.md.)
 ///
 /// **Traversal**: the `W` child boxes are tested at once (SSE for 4, AVX for 8 where the CPU has
-/// it, chosen at run time; a scalar twin elsewhere, with identical answers); hit children are
-/// visited nearest first, the others pushed with their entry distance and dropped on pop when
-/// they lie beyond the closest hit so far.
+/// it, chosen when the layout is made; a scalar twin elsewhere, with identical answers); hit
+/// children are visited nearest first, the others pushed with their entry distance and dropped
+/// on pop when they lie beyond the closest hit so far.
 #[derive(Clone, Debug)]
 pub struct WideLayout<const W: usize> {
     nodes: Vec<WideNode<W>>,
@@ -42,10 +42,10 @@ pub struct WideLayout<const W: usize> {
     /// The root reference (a node, or a leaf for trees of one leaf), with the root's box and
     /// its [`PreparedRay::scene_size`](crate::geometry::PreparedRay::scene_size).
     root: Option<(u32, Aabb, f32)>,
-    use_avx: bool,
-    /// Whether batches trace coherent runs of eight rays as packets ([`ray_packet`]): 8-wide
-    /// nodes on a CPU with AVX2, unless turned off ([`WideLayout::with_ray_packets`]).
-    packets_of_rays: bool,
+    /// The kernels the queries run, chosen from what the CPU has when the layout is made
+    /// (packets of coherent rays only for 8-wide nodes on a CPU with AVX2, unless turned off:
+    /// [`WideLayout::with_ray_packets`]).
+    kernels: Kernels,
     /// The median over triangle packets of their box's largest extent: the size of the
     /// patches rays tell apart at the leaves (what a packet of rays is compared with, in
     /// [`ray_packet`]).
@@ -74,20 +74,13 @@ impl<const W: usize> WideLayout<W> {
     /// other rays one by one, interleaved. The answers are the same either way; off, every ray
     /// is traced alone (for comparisons of the two).
     pub fn with_ray_packets(mut self, on: bool) -> Self {
-        self.packets_of_rays = on && W == 8 && detect_avx2();
+        self.kernels = Kernels::for_this_cpu(W, on);
         self
     }
 
     /// Whether batches trace packets of coherent rays ([`WideLayout::with_ray_packets`]).
     pub fn traces_ray_packets(&self) -> bool {
-        self.packets_of_rays
-    }
-
-    /// Whether the traversals run the AVX kernels (8-wide nodes on a CPU with AVX; only then is
-    /// an AVX entry point called). Callers outside this module that pass a leaf visitor write it
-    /// in a function compiled with AVX then (see `all_hits.rs`).
-    pub(super) fn traverses_with_avx(&self) -> bool {
-        W == 8 && self.use_avx
+        self.kernels.traces_ray_packets()
     }
 
     /// Bytes of node and triangle data.

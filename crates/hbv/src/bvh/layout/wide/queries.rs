@@ -1,24 +1,28 @@
-//! The wide layout's queries: closest hit and any hit, one ray at a time or in batches, and the
-//! traversal of every leaf a ray reaches. Each query chooses its kernel once, at its top.
+//! The wide layout's queries: closest hit and any hit, one ray at a time or in batches.
+//!
+//! Each query branches once, at its top, on the layout's [`Kernels`] into a traversal compiled
+//! for them. The queries are implemented once per width: 4-wide layouts always run the baseline
+//! kernels, 8-wide ones whatever the CPU allows, so only `WideLayout<8>` has the entry points
+//! compiled with AVX (and the packets of rays, with AVX2).
 
 #[cfg(target_arch = "x86_64")]
 use super::kernels::AvxBoxes;
-use super::kernels::{BoxKernel, DefaultBoxes};
+use super::kernels::{BaselineBoxes, BoxKernel, Kernels};
 #[cfg(target_arch = "x86_64")]
 use super::ray_packet;
 use super::stream;
 use super::traversal::{Step, Traversal};
-use super::{TrianglePacket, WideLayout};
+use super::WideLayout;
 use crate::geometry::{PreparedRay, Ray};
 use crate::query::{Hit, TraversalKernel};
-use crate::stats::{Counter, NoCount};
+use crate::stats::Counter;
 
 impl<const W: usize> WideLayout<W> {
     /// One ray's traversal (valid: checked by the caller), nearest child first when
     /// `NEAREST_FIRST`: each leaf reached goes to `visit_leaf(first_packet, packet_count, ray,
     /// counter)`, which returns `true` to stop. See [`Traversal::step`].
     #[inline(always)]
-    fn traverse<C: Counter, K: BoxKernel<W>, const NEAREST_FIRST: bool>(
+    pub(super) fn traverse<C: Counter, K: BoxKernel<W>, const NEAREST_FIRST: bool>(
         &self,
         ray: &Ray,
         counter: &mut C,
@@ -32,9 +36,8 @@ impl<const W: usize> WideLayout<W> {
         {
         }
     }
-}
 
-impl<const W: usize> WideLayout<W> {
+    /// The closest hit of `ray` (valid), with box kernel `K`.
     #[inline(always)]
     fn closest_hit_with<C: Counter, K: BoxKernel<W>>(
         &self,
@@ -49,6 +52,7 @@ impl<const W: usize> WideLayout<W> {
         best
     }
 
+    /// A triangle that blocks `ray` (valid), with box kernel `K`.
     #[inline(always)]
     fn any_hit_with<C: Counter, K: BoxKernel<W>>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
         let mut found = None;
@@ -57,6 +61,33 @@ impl<const W: usize> WideLayout<W> {
             found.is_some()
         });
         found
+    }
+
+    /// The closest-hit batch with the baseline kernels.
+    fn closest_hits_baseline(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        let block = self.root_block::<BaselineBoxes, _>();
+        self.trace_batch::<BaselineBoxes, _, true>(rays, hits, stream::closest_leaf_visit!(), block)
+    }
+
+    /// The any-hit batch with the baseline kernels, children nearest first or in lane order
+    /// ([`WideLayout::mostly_from_outside`]).
+    fn occluders_baseline(&self, rays: &[Ray], occluders: &mut [Option<u32>], nearest_first: bool) {
+        let block = self.root_block::<BaselineBoxes, _>();
+        if nearest_first {
+            self.trace_batch::<BaselineBoxes, _, true>(
+                rays,
+                occluders,
+                stream::any_leaf_visit!(),
+                block,
+            )
+        } else {
+            self.trace_batch::<BaselineBoxes, _, false>(
+                rays,
+                occluders,
+                stream::any_leaf_visit!(),
+                block,
+            )
+        }
     }
 
     /// Whether `origin` lies outside the tree's box (or the tree is empty).
@@ -90,71 +121,13 @@ impl<const W: usize> WideLayout<W> {
         });
         2 * outside > sampled
     }
-
-    /// The closest-hit traversal compiled with AVX. Call only when the CPU has AVX.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    unsafe fn closest_hit_avx<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
-        self.closest_hit_with::<C, AvxBoxes>(ray, counter)
-    }
-
-    /// The any-hit traversal compiled with AVX. Call only when the CPU has AVX.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    unsafe fn any_hit_avx<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
-        self.any_hit_with::<C, AvxBoxes>(ray, counter)
-    }
 }
 
-impl<const W: usize> WideLayout<W> {
-    /// Calls `visit` with the triangle packets of every leaf whose box the ray's whole interval
-    /// reaches (the interval is never shrunk), in any-hit order: the traversal of the queries
-    /// that want every hit. The ray is valid (checked by the caller).
-    pub(super) fn for_each_leaf_reached(
-        &self,
-        ray: &Ray,
-        mut visit: impl FnMut(&[TrianglePacket], &PreparedRay),
-    ) {
-        #[cfg(target_arch = "x86_64")]
-        if self.traverses_with_avx() {
-            // SAFETY: `use_avx` is set only when the CPU reported AVX.
-            return unsafe { self.for_each_leaf_reached_avx(ray, &mut visit) };
-        }
-        self.for_each_leaf_reached_with::<DefaultBoxes>(ray, &mut visit)
-    }
-
-    #[inline(always)]
-    fn for_each_leaf_reached_with<K: BoxKernel<W>>(
-        &self,
-        ray: &Ray,
-        visit: &mut impl FnMut(&[TrianglePacket], &PreparedRay),
-    ) {
-        self.traverse::<NoCount, K, false>(ray, &mut NoCount, |first, count, ray, _| {
-            visit(&self.packets[first..first + count], ray);
-            false
-        });
-    }
-
-    /// The all-leaves traversal compiled with AVX. Call only when the CPU has AVX.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx")]
-    unsafe fn for_each_leaf_reached_avx(
-        &self,
-        ray: &Ray,
-        visit: &mut impl FnMut(&[TrianglePacket], &PreparedRay),
-    ) {
-        self.for_each_leaf_reached_with::<AvxBoxes>(ray, visit)
-    }
-}
-
-impl<const W: usize> TraversalKernel for WideLayout<W> {
+/// 4-wide nodes: the baseline kernels whatever the CPU (a node's four boxes are one SSE register
+/// per axis and side).
+impl TraversalKernel for WideLayout<4> {
     fn closest_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
-        #[cfg(target_arch = "x86_64")]
-        if self.traverses_with_avx() {
-            // SAFETY: `use_avx` is set only when the CPU reported AVX.
-            return unsafe { self.closest_hit_avx(ray, counter) };
-        }
-        self.closest_hit_with::<C, DefaultBoxes>(ray, counter)
+        self.closest_hit_with::<C, BaselineBoxes>(ray, counter)
     }
 
     fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
@@ -162,118 +135,106 @@ impl<const W: usize> TraversalKernel for WideLayout<W> {
     }
 
     fn any_hit_prim<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
-        #[cfg(target_arch = "x86_64")]
-        if self.traverses_with_avx() {
-            // SAFETY: `use_avx` is set only when the CPU reported AVX.
-            return unsafe { self.any_hit_avx(ray, counter) };
-        }
-        self.any_hit_with::<C, DefaultBoxes>(ray, counter)
+        self.any_hit_with::<C, BaselineBoxes>(ray, counter)
     }
 
     fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        #[cfg(target_arch = "x86_64")]
-        if self.packets_of_rays {
-            // SAFETY: set only on a CPU that reported AVX and AVX2.
-            return unsafe { self.closest_hits_avx2(rays, hits) };
+        self.closest_hits_baseline(rays, hits)
+    }
+
+    fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
+        self.occluders_baseline(rays, occluders, self.mostly_from_outside(rays))
+    }
+}
+
+/// 8-wide nodes: the kernels chosen when the layout was made ([`Kernels`]).
+impl TraversalKernel for WideLayout<8> {
+    fn closest_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
+        match self.kernels {
+            Kernels::Baseline => self.closest_hit_with::<C, BaselineBoxes>(ray, counter),
+            // SAFETY: the AVX kernels are chosen only on a CPU that reported AVX.
+            #[cfg(target_arch = "x86_64")]
+            Kernels::Avx | Kernels::AvxRayPackets => unsafe { self.closest_hit_avx(ray, counter) },
         }
-        #[cfg(target_arch = "x86_64")]
-        if self.traverses_with_avx() {
-            // SAFETY: `use_avx` is set only when the CPU reported AVX.
-            return unsafe { self.closest_hits_avx(rays, hits) };
+    }
+
+    fn any_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> bool {
+        self.any_hit_prim(ray, counter).is_some()
+    }
+
+    fn any_hit_prim<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
+        match self.kernels {
+            Kernels::Baseline => self.any_hit_with::<C, BaselineBoxes>(ray, counter),
+            // SAFETY: the AVX kernels are chosen only on a CPU that reported AVX.
+            #[cfg(target_arch = "x86_64")]
+            Kernels::Avx | Kernels::AvxRayPackets => unsafe { self.any_hit_avx(ray, counter) },
         }
-        let block = self.root_block::<DefaultBoxes, _>();
-        self.trace_batch::<DefaultBoxes, _, true>(rays, hits, stream::closest_leaf_visit!(), block)
+    }
+
+    fn closest_hits(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        match self.kernels {
+            Kernels::Baseline => self.closest_hits_baseline(rays, hits),
+            // SAFETY: chosen only on a CPU that reported AVX.
+            #[cfg(target_arch = "x86_64")]
+            Kernels::Avx => unsafe { self.closest_hits_avx(rays, hits) },
+            // SAFETY: chosen only on a CPU that reported AVX and AVX2.
+            #[cfg(target_arch = "x86_64")]
+            Kernels::AvxRayPackets => unsafe { self.closest_hits_avx2(rays, hits) },
+        }
     }
 
     fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
         // Chosen before the kernel is entered, so that each kernel holds one traversal loop.
         let nearest_first = self.mostly_from_outside(rays);
-        #[cfg(target_arch = "x86_64")]
-        if self.packets_of_rays {
-            // SAFETY: set only on a CPU that reported AVX and AVX2.
-            return unsafe {
-                if nearest_first {
-                    self.any_hits_avx2::<true>(rays, occluders)
-                } else {
-                    self.any_hits_avx2::<false>(rays, occluders)
-                }
-            };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if self.traverses_with_avx() {
-            // SAFETY: `use_avx` is set only when the CPU reported AVX.
-            return unsafe {
+        match self.kernels {
+            Kernels::Baseline => self.occluders_baseline(rays, occluders, nearest_first),
+            // SAFETY: chosen only on a CPU that reported AVX.
+            #[cfg(target_arch = "x86_64")]
+            Kernels::Avx => unsafe {
                 if nearest_first {
                     self.any_hits_avx::<true>(rays, occluders)
                 } else {
                     self.any_hits_avx::<false>(rays, occluders)
                 }
-            };
-        }
-        let (visit, block) = (
-            stream::any_leaf_visit!(),
-            self.root_block::<DefaultBoxes, _>(),
-        );
-        if nearest_first {
-            self.trace_batch::<DefaultBoxes, _, true>(rays, occluders, visit, block)
-        } else {
-            self.trace_batch::<DefaultBoxes, _, false>(rays, occluders, visit, block)
+            },
+            // SAFETY: chosen only on a CPU that reported AVX and AVX2.
+            #[cfg(target_arch = "x86_64")]
+            Kernels::AvxRayPackets => unsafe {
+                if nearest_first {
+                    self.any_hits_avx2::<true>(rays, occluders)
+                } else {
+                    self.any_hits_avx2::<false>(rays, occluders)
+                }
+            },
         }
     }
 }
 
-impl<const W: usize> WideLayout<W> {
+/// The entry points compiled with AVX (and AVX2): 8-wide nodes only. Call each only when the
+/// layout's [`Kernels`] say so.
+#[cfg(target_arch = "x86_64")]
+impl WideLayout<8> {
+    /// The closest-hit traversal compiled with AVX. Call only when the CPU has AVX.
+    #[target_feature(enable = "avx")]
+    unsafe fn closest_hit_avx<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
+        self.closest_hit_with::<C, AvxBoxes>(ray, counter)
+    }
+
+    /// The any-hit traversal compiled with AVX. Call only when the CPU has AVX.
+    #[target_feature(enable = "avx")]
+    unsafe fn any_hit_avx<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<u32> {
+        self.any_hit_with::<C, AvxBoxes>(ray, counter)
+    }
+
     /// The closest-hit batch compiled with AVX. Call only when the CPU has AVX.
-    #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     unsafe fn closest_hits_avx(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
         let block = self.root_block::<AvxBoxes, _>();
         self.trace_batch::<AvxBoxes, _, true>(rays, hits, stream::closest_leaf_visit!(), block)
     }
 
-    /// The closest-hit batch with packets of coherent rays ([`ray_packet`]), compiled with
-    /// AVX2. Call only when [`WideLayout::packets_of_rays`] is set (8-wide, AVX2).
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn closest_hits_avx2(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        // SAFETY: `packets_of_rays` is set only for W == 8: the cast is to the same type.
-        let layout = unsafe { &*(self as *const Self as *const WideLayout<8>) };
-        let Some(limit) = layout.beam_limit() else {
-            return hits.fill(None);
-        };
-        // SAFETY (the closure): compiled with AVX2, as this function is.
-        let block = |eight: &[Ray; 8], out: &mut [Option<Hit>]| unsafe {
-            layout.packet_block::<ray_packet::ClosestHits>(eight, out, &limit)
-        };
-        self.trace_batch::<AvxBoxes, _, true>(rays, hits, stream::closest_leaf_visit!(), block)
-    }
-
-    /// The any-hit batch with packets of coherent rays, as
-    /// [`WideLayout::closest_hits_avx2`]; single rays take children nearest first or in lane
-    /// order, packets nearest first.
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn any_hits_avx2<const NEAREST_FIRST: bool>(
-        &self,
-        rays: &[Ray],
-        occluders: &mut [Option<u32>],
-    ) {
-        // SAFETY: `packets_of_rays` is set only for W == 8: the cast is to the same type.
-        let layout = unsafe { &*(self as *const Self as *const WideLayout<8>) };
-        let Some(limit) = layout.beam_limit() else {
-            return occluders.fill(None);
-        };
-        // SAFETY (the closure): compiled with AVX2, as this function is.
-        let block = |eight: &[Ray; 8], out: &mut [Option<u32>]| unsafe {
-            layout.packet_block::<ray_packet::Occluders>(eight, out, &limit)
-        };
-        let visit = stream::any_leaf_visit!();
-        self.trace_batch::<AvxBoxes, _, NEAREST_FIRST>(rays, occluders, visit, block)
-    }
-
     /// The any-hit batch compiled with AVX, children nearest first or in lane order. Call
     /// only when the CPU has AVX.
-    #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx")]
     unsafe fn any_hits_avx<const NEAREST_FIRST: bool>(
         &self,
@@ -281,6 +242,44 @@ impl<const W: usize> WideLayout<W> {
         occluders: &mut [Option<u32>],
     ) {
         let block = self.root_block::<AvxBoxes, _>();
+        self.trace_batch::<AvxBoxes, _, NEAREST_FIRST>(
+            rays,
+            occluders,
+            stream::any_leaf_visit!(),
+            block,
+        )
+    }
+
+    /// The closest-hit batch with packets of coherent rays ([`ray_packet`]), compiled with
+    /// AVX2. Call only when the CPU has AVX and AVX2 ([`Kernels::AvxRayPackets`]).
+    #[target_feature(enable = "avx2")]
+    unsafe fn closest_hits_avx2(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
+        let Some(limit) = self.beam_limit() else {
+            return hits.fill(None);
+        };
+        // SAFETY (the closure): compiled with AVX2, as this function is.
+        let block = |eight: &[Ray; 8], out: &mut [Option<Hit>]| unsafe {
+            self.packet_block::<ray_packet::ClosestHits>(eight, out, &limit)
+        };
+        self.trace_batch::<AvxBoxes, _, true>(rays, hits, stream::closest_leaf_visit!(), block)
+    }
+
+    /// The any-hit batch with packets of coherent rays, as
+    /// [`WideLayout::closest_hits_avx2`]; single rays take children nearest first or in lane
+    /// order, packets nearest first.
+    #[target_feature(enable = "avx2")]
+    unsafe fn any_hits_avx2<const NEAREST_FIRST: bool>(
+        &self,
+        rays: &[Ray],
+        occluders: &mut [Option<u32>],
+    ) {
+        let Some(limit) = self.beam_limit() else {
+            return occluders.fill(None);
+        };
+        // SAFETY (the closure): compiled with AVX2, as this function is.
+        let block = |eight: &[Ray; 8], out: &mut [Option<u32>]| unsafe {
+            self.packet_block::<ray_packet::Occluders>(eight, out, &limit)
+        };
         self.trace_batch::<AvxBoxes, _, NEAREST_FIRST>(
             rays,
             occluders,

@@ -39,10 +39,11 @@ pub(super) const INTERLEAVE_ABOVE_BYTES: usize = 32 << 10;
 /// compiler leaves it out of line (inlining it into the stream loop was measured 5–9% slower),
 /// and an out-of-line closure is compiled with the target features of the function it is
 /// written in: written in `closest_hits_avx` it is AVX code, written in a generic helper it was
-/// baseline SSE2 (two-operand forms and their register copies).
+/// baseline SSE2 (two-operand forms and their register copies). Written as the argument of
+/// [`WideLayout::trace_batch`], whose signature gives the closure the layout's type.
 macro_rules! closest_leaf_visit {
     () => {
-        |layout: &WideLayout<W>,
+        |layout,
          first,
          count,
          ray: &mut crate::geometry::PreparedRay,
@@ -59,11 +60,7 @@ pub(super) use closest_leaf_visit;
 /// [`closest_leaf_visit!`].
 macro_rules! any_leaf_visit {
     () => {
-        |layout: &WideLayout<W>,
-         first,
-         count,
-         ray: &mut crate::geometry::PreparedRay,
-         found: &mut Option<u32>| {
+        |layout, first, count, ray: &mut crate::geometry::PreparedRay, found: &mut Option<u32>| {
             *found = layout.any_hit_in_leaf(first, count, ray, &mut crate::stats::NoCount);
             found.is_some()
         }
@@ -333,7 +330,10 @@ mod tests {
 
     /// Batches answer exactly what single rays answer, interleaved or ray by ray (interleaving
     /// forced on and off), for both widths.
-    fn check<const W: usize>(rays: &[Ray]) -> Result<(), TestCaseError> {
+    fn check<const W: usize>(rays: &[Ray]) -> Result<(), TestCaseError>
+    where
+        WideLayout<W>: TraversalKernel,
+    {
         let mesh = torus(Vec3::new(0.1, -0.2, 0.3), 1.5, 0.5, 24, 12);
         let tree = InsertionBuilder::default().build(&mesh);
         let mut layout = WideLayout::<W>::new(&tree, &mesh);
