@@ -1,10 +1,10 @@
 //! Every hit along a ray through the wide layout: one traversal that visits every leaf the
 //! ray's full interval reaches and keeps every triangle hit.
 
-use super::box_kernels::Lanes;
 #[cfg(target_arch = "x86_64")]
 use super::kernels::AvxBoxes;
 use super::kernels::{BaselineBoxes, BoxKernel, Kernels};
+use super::lanes::Lanes;
 use super::leaf::undecided_lane;
 use super::{TrianglePacket, WideLayout};
 use crate::all_hits::{sort_hits, AllHits};

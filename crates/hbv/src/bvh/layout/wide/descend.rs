@@ -1,7 +1,7 @@
 //! The step from a wide node to its children: which of those the ray meets it visits next, and in
 //! which order it postpones the others.
 
-use super::box_kernels::Lanes;
+use super::lanes::Lanes;
 use super::WideLayout;
 use crate::bvh::layout::stack::TraversalStack;
 

@@ -1,7 +1,7 @@
 //! A single ray at a leaf of the wide layout: its triangle packets tested, the SIMD test deciding
 //! what it can and the scalar test the lanes it leaves undecided.
 
-use super::box_kernels::Lanes;
+use super::lanes::Lanes;
 use super::node::{LEAF, LEAF_COUNT_SHIFT, LEAF_FIRST_MASK};
 use super::{TrianglePacket, WideLayout};
 use crate::geometry::{EdgeRule, PreparedRay, TriangleHit};

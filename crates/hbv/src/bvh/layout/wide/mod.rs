@@ -5,6 +5,7 @@ mod box_kernels;
 mod collapse;
 mod descend;
 mod kernels;
+mod lanes;
 mod leaf;
 mod node;
 mod prefetch;

@@ -32,8 +32,9 @@
 
 use std::arch::x86_64::*;
 
-use super::box_kernels::{LaneBoxes, Lanes};
+use super::box_kernels::LaneBoxes;
 use super::kernels::AvxBoxes;
+use super::lanes::Lanes;
 use super::leaf::undecided_lane;
 use super::node::LEAF;
 use super::root_filter::{RayColumns, RootTest};

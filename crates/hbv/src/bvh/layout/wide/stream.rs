@@ -13,8 +13,8 @@
 //! triangle tests, order of children, culling — so its answer is exactly [`WideLayout`]'s
 //! single-ray answer; only the order in which rays' steps are taken differs.
 
-use super::box_kernels::Lanes;
 use super::kernels::BoxKernel;
+use super::lanes::Lanes;
 use super::root_filter::RayCursor;
 use super::traversal::{Step, Traversal};
 use super::WideLayout;
