@@ -3,7 +3,7 @@
 //! in fours.
 
 use super::kernels::Kernels;
-use super::node::{WideNode, LEAF, LEAF_COUNT_SHIFT, LEAF_FIRST_MASK, MAX_LEAF_TRIANGLES};
+use super::node::{leaf_reference, WideNode, MAX_LEAF_TRIANGLES};
 use super::prefetch::PREFETCH_ABOVE_BYTES;
 use super::stream::INTERLEAVE_ABOVE_BYTES;
 use super::{TrianglePacket, WideLayout};
@@ -97,10 +97,6 @@ impl<const W: usize> WideLayout<W> {
             return index;
         }
         let first = self.packets.len() as u32;
-        assert!(
-            first <= LEAF_FIRST_MASK,
-            "too many triangle packets for the wide layout"
-        );
         for chunk in prims.chunks(4) {
             let triangles: [(u32, crate::geometry::Triangle); 4] = std::array::from_fn(|k| {
                 let p = chunk[k.min(chunk.len() - 1)];
@@ -110,7 +106,7 @@ impl<const W: usize> WideLayout<W> {
                 .push(TrianglePacket::new(&triangles[..chunk.len()]));
         }
         let count = prims.len().div_ceil(4) as u32;
-        LEAF | ((count - 1) << LEAF_COUNT_SHIFT) | first
+        leaf_reference(first, count)
     }
 }
 

@@ -2,7 +2,7 @@
 //! what it can and the scalar test the lanes it leaves undecided.
 
 use super::lanes::Lanes;
-use super::node::{LEAF, LEAF_COUNT_SHIFT, LEAF_FIRST_MASK};
+use super::node::leaf_span;
 use super::{TrianglePacket, WideLayout};
 use crate::geometry::{EdgeRule, PreparedRay, TriangleHit};
 use crate::query::{record_hit, Hit};
@@ -31,11 +31,10 @@ impl<const W: usize> WideLayout<W> {
         }
     }
 
-    /// The triangle packets of leaf reference `leaf` (bit [`LEAF`] set).
+    /// The triangle packets of leaf reference `leaf`.
     #[inline(always)]
     pub(super) fn leaf_packets(&self, leaf: u32) -> &[TrianglePacket] {
-        let first = (leaf & LEAF_FIRST_MASK) as usize;
-        let count = ((leaf & !LEAF) >> LEAF_COUNT_SHIFT) as usize + 1;
+        let (first, count) = leaf_span(leaf);
         &self.packets[first..first + count]
     }
 

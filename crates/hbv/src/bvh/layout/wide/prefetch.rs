@@ -2,7 +2,7 @@
 //! rays for that of the node they visit next, before they read it, in layouts too large for the
 //! caches nearest the core.
 
-use super::node::{LEAF, LEAF_FIRST_MASK};
+use super::node::{is_leaf, leaf_span};
 use super::WideLayout;
 
 /// Layouts up to this size stay in a core's L2 cache (1–2 MiB on current x86 cores) once warm;
@@ -17,8 +17,8 @@ impl<const W: usize> WideLayout<W> {
         #[cfg(target_arch = "x86_64")]
         if self.prefetch {
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            let address = if reference & LEAF != 0 {
-                let first = (reference & LEAF_FIRST_MASK) as usize;
+            let address = if is_leaf(reference) {
+                let (first, _) = leaf_span(reference);
                 self.packets.as_ptr().wrapping_add(first) as *const i8
             } else {
                 self.nodes.as_ptr().wrapping_add(reference as usize) as *const i8

@@ -36,7 +36,7 @@ use super::box_kernels::LaneBoxes;
 use super::kernels::AvxBoxes;
 use super::lanes::Lanes;
 use super::leaf::undecided_lane;
-use super::node::LEAF;
+use super::node::is_leaf;
 use super::root_filter::{RayColumns, RootTest};
 use super::traversal::{Step, Traversal};
 use super::{TrianglePacket, WideLayout};
@@ -891,7 +891,7 @@ impl WideLayout<8> {
                     for lane in Lanes(lanes) {
                         query.go_alone(self, current, lane, packet);
                     }
-                } else if current & LEAF != 0 {
+                } else if is_leaf(current) {
                     query.visit_leaf(self, current, lanes, packet);
                 } else {
                     let node = &self.nodes[current as usize];
