@@ -30,7 +30,7 @@ impl AllHits for WideLayout<4> {
     }
 }
 
-/// As for 4-wide nodes, with the kernels chosen when the layout was made ([`Kernels`]).
+/// As for 4-wide nodes, with AVX where the CPU has it (chosen when the layout is made).
 impl AllHits for WideLayout<8> {
     fn all_hits(&self, ray: &Ray, hits: &mut Vec<Hit>) {
         hits.clear();

@@ -52,10 +52,12 @@ pub struct WideLayout<const W: usize> {
     /// [`ray_packet`]).
     packet_extent: f32,
     /// Whether traversals prefetch the nodes they are about to visit: only for layouts larger
-    /// than [`PREFETCH_ABOVE_BYTES`](prefetch::PREFETCH_ABOVE_BYTES), which the caches nearest the core cannot hold.
+    /// than [`PREFETCH_ABOVE_BYTES`](prefetch::PREFETCH_ABOVE_BYTES), which the caches nearest
+    /// the core cannot hold.
     prefetch: bool,
     /// Whether batches interleave their rays ([`stream`]): only for layouts larger than
-    /// [`INTERLEAVE_ABOVE_BYTES`](stream::INTERLEAVE_ABOVE_BYTES); smaller ones answer each ray in turn.
+    /// [`INTERLEAVE_ABOVE_BYTES`](stream::INTERLEAVE_ABOVE_BYTES); smaller ones answer each ray
+    /// in turn.
     interleave: bool,
 }
 

@@ -8,8 +8,6 @@
 #[cfg(target_arch = "x86_64")]
 use super::kernels::AvxBoxes;
 use super::kernels::{BaselineBoxes, BoxKernel, Kernels};
-#[cfg(target_arch = "x86_64")]
-use super::ray_packet;
 use super::stream;
 use super::traversal::{Step, Traversal};
 use super::WideLayout;
@@ -147,7 +145,8 @@ impl TraversalKernel for WideLayout<4> {
     }
 }
 
-/// 8-wide nodes: the kernels chosen when the layout was made ([`Kernels`]).
+/// 8-wide nodes: AVX where the CPU has it, and packets of coherent rays in batches where it has
+/// AVX2 (chosen when the layout is made).
 impl TraversalKernel for WideLayout<8> {
     fn closest_hit<C: Counter>(&self, ray: &Ray, counter: &mut C) -> Option<Hit> {
         match self.kernels {
@@ -211,7 +210,7 @@ impl TraversalKernel for WideLayout<8> {
 }
 
 /// The entry points compiled with AVX (and AVX2): 8-wide nodes only. Call each only when the
-/// layout's [`Kernels`] say so.
+/// layout's `Kernels` say so.
 #[cfg(target_arch = "x86_64")]
 impl WideLayout<8> {
     /// The closest-hit traversal compiled with AVX. Call only when the CPU has AVX.
@@ -242,44 +241,6 @@ impl WideLayout<8> {
         occluders: &mut [Option<u32>],
     ) {
         let block = self.root_block::<AvxBoxes, _>();
-        self.trace_batch::<AvxBoxes, _, NEAREST_FIRST>(
-            rays,
-            occluders,
-            stream::any_leaf_visit!(),
-            block,
-        )
-    }
-
-    /// The closest-hit batch with packets of coherent rays ([`ray_packet`]), compiled with
-    /// AVX2. Call only when the CPU has AVX and AVX2 ([`Kernels::AvxRayPackets`]).
-    #[target_feature(enable = "avx2")]
-    unsafe fn closest_hits_avx2(&self, rays: &[Ray], hits: &mut [Option<Hit>]) {
-        let Some(limit) = self.beam_limit() else {
-            return hits.fill(None);
-        };
-        // SAFETY (the closure): compiled with AVX2, as this function is.
-        let block = |eight: &[Ray; 8], out: &mut [Option<Hit>]| unsafe {
-            self.packet_block::<ray_packet::ClosestHits>(eight, out, &limit)
-        };
-        self.trace_batch::<AvxBoxes, _, true>(rays, hits, stream::closest_leaf_visit!(), block)
-    }
-
-    /// The any-hit batch with packets of coherent rays, as
-    /// [`WideLayout::closest_hits_avx2`]; single rays take children nearest first or in lane
-    /// order, packets nearest first.
-    #[target_feature(enable = "avx2")]
-    unsafe fn any_hits_avx2<const NEAREST_FIRST: bool>(
-        &self,
-        rays: &[Ray],
-        occluders: &mut [Option<u32>],
-    ) {
-        let Some(limit) = self.beam_limit() else {
-            return occluders.fill(None);
-        };
-        // SAFETY (the closure): compiled with AVX2, as this function is.
-        let block = |eight: &[Ray; 8], out: &mut [Option<u32>]| unsafe {
-            self.packet_block::<ray_packet::Occluders>(eight, out, &limit)
-        };
         self.trace_batch::<AvxBoxes, _, NEAREST_FIRST>(
             rays,
             occluders,
