@@ -87,7 +87,7 @@ fn closest_hit_in_packet<C: Counter>(
 /// left undecided: a ray within rounding distance of an edge or a vertex, or a hit next to its
 /// origin. Rare, and kept out of line: inlined, the scalar test doubled the size of the
 /// closest-hit leaf visit (3.5 to 7.2 KB) and made closest hits from Python 2–5 % slower on one
-/// thread (BENCHMARKS.md, session 17).
+/// thread (measured when it was taken out of line, commit 8a93f5f).
 #[cold]
 #[inline(never)]
 pub(super) fn undecided_lane(
