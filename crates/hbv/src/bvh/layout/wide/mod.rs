@@ -1,4 +1,22 @@
-//! Wide nodes: 4 or 8 children per node, their boxes tested together with SIMD.
+//! Wide nodes: 4 or 8 children per node, their boxes tested together with SIMD ([`WideLayout`]).
+//!
+//! | file | what it holds |
+//! | --- | --- |
+//! | `node.rs` | a node: `W` child boxes as SIMD lanes, and the references to nodes and leaves |
+//! | `collapse.rs` | the layout made from a build tree: binary nodes collapsed into wide ones |
+//! | `box_kernels.rs` | `W` boxes against one ray: the scalar definition, SSE and AVX |
+//! | `triangle_packet.rs` | four triangles against one ray, the leaves' storage |
+//! | `kernels.rs` | the instruction set the queries run, chosen once per layout |
+//! | `queries.rs` | closest hit and any hit, single rays and batches, per width |
+//! | `traversal.rs` | one ray's walk, a node at a time |
+//! | `descend.rs` | the order in which a ray takes a node's children |
+//! | `prefetch.rs` | asking for the memory of postponed children early |
+//! | `leaf.rs` | one ray at a leaf |
+//! | `stream.rs` | batches interleaved, to hide memory latency |
+//! | `root_filter.rs` | a batch's rays against the root box, eight at a time |
+//! | `ray_packet/` | coherent rays traced eight at a time (8-wide nodes, AVX2) |
+//! | `all_hits.rs` | every hit along a ray |
+//! | `lanes.rs` | lane masks |
 
 mod all_hits;
 mod box_kernels;
