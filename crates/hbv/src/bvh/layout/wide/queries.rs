@@ -69,23 +69,18 @@ impl<const W: usize> WideLayout<W> {
 
     /// The any-hit batch with the baseline kernels, children nearest first or in lane order
     /// ([`WideLayout::mostly_from_outside`]).
-    fn occluders_baseline(&self, rays: &[Ray], occluders: &mut [Option<u32>], nearest_first: bool) {
+    fn any_hits_baseline<const NEAREST_FIRST: bool>(
+        &self,
+        rays: &[Ray],
+        occluders: &mut [Option<u32>],
+    ) {
         let block = self.root_block::<BaselineBoxes, _>();
-        if nearest_first {
-            self.trace_batch::<BaselineBoxes, _, true>(
-                rays,
-                occluders,
-                stream::any_leaf_visit!(),
-                block,
-            )
-        } else {
-            self.trace_batch::<BaselineBoxes, _, false>(
-                rays,
-                occluders,
-                stream::any_leaf_visit!(),
-                block,
-            )
-        }
+        self.trace_batch::<BaselineBoxes, _, NEAREST_FIRST>(
+            rays,
+            occluders,
+            stream::any_leaf_visit!(),
+            block,
+        )
     }
 
     /// Whether `origin` lies outside the tree's box (or the tree is empty).
@@ -142,7 +137,11 @@ impl TraversalKernel for WideLayout<4> {
     }
 
     fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
-        self.occluders_baseline(rays, occluders, self.mostly_from_outside(rays))
+        if self.mostly_from_outside(rays) {
+            self.any_hits_baseline::<true>(rays, occluders)
+        } else {
+            self.any_hits_baseline::<false>(rays, occluders)
+        }
     }
 }
 
@@ -184,27 +183,24 @@ impl TraversalKernel for WideLayout<8> {
     }
 
     fn occluders(&self, rays: &[Ray], occluders: &mut [Option<u32>]) {
-        // Chosen before the kernel is entered, so that each kernel holds one traversal loop.
-        let nearest_first = self.mostly_from_outside(rays);
-        match self.kernels {
-            Kernels::Baseline => self.occluders_baseline(rays, occluders, nearest_first),
-            // SAFETY: chosen only on a CPU that reported AVX.
+        // The order of children is chosen with the kernel, before it is entered, so that each
+        // kernel holds one traversal loop.
+        match (self.kernels, self.mostly_from_outside(rays)) {
+            (Kernels::Baseline, true) => self.any_hits_baseline::<true>(rays, occluders),
+            (Kernels::Baseline, false) => self.any_hits_baseline::<false>(rays, occluders),
+            // SAFETY (these four): `Avx` is chosen only on a CPU that reported AVX,
+            // `AvxRayPackets` only on one that reported AVX and AVX2.
             #[cfg(target_arch = "x86_64")]
-            Kernels::Avx => unsafe {
-                if nearest_first {
-                    self.any_hits_avx::<true>(rays, occluders)
-                } else {
-                    self.any_hits_avx::<false>(rays, occluders)
-                }
+            (Kernels::Avx, true) => unsafe { self.any_hits_avx::<true>(rays, occluders) },
+            #[cfg(target_arch = "x86_64")]
+            (Kernels::Avx, false) => unsafe { self.any_hits_avx::<false>(rays, occluders) },
+            #[cfg(target_arch = "x86_64")]
+            (Kernels::AvxRayPackets, true) => unsafe {
+                self.any_hits_avx2::<true>(rays, occluders)
             },
-            // SAFETY: chosen only on a CPU that reported AVX and AVX2.
             #[cfg(target_arch = "x86_64")]
-            Kernels::AvxRayPackets => unsafe {
-                if nearest_first {
-                    self.any_hits_avx2::<true>(rays, occluders)
-                } else {
-                    self.any_hits_avx2::<false>(rays, occluders)
-                }
+            (Kernels::AvxRayPackets, false) => unsafe {
+                self.any_hits_avx2::<false>(rays, occluders)
             },
         }
     }
