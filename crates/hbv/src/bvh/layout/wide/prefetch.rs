@@ -2,7 +2,6 @@
 //! rays for that of the node they visit next, before they read it, in layouts too large for the
 //! caches nearest the core.
 
-use super::node::{is_leaf, leaf_span};
 use super::WideLayout;
 
 /// Layouts up to this size stay in a core's L2 cache (1–2 MiB on current x86 cores) once warm;
@@ -16,6 +15,7 @@ impl<const W: usize> WideLayout<W> {
     pub(super) fn prefetch(&self, reference: u32) {
         #[cfg(target_arch = "x86_64")]
         if self.prefetch {
+            use super::node::{is_leaf, leaf_span};
             use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
             let address = if is_leaf(reference) {
                 let (first, _) = leaf_span(reference);
