@@ -18,8 +18,6 @@ mod recursive;
 mod skip;
 mod stack;
 mod wide;
-mod wide_all_hits;
-mod wide_kernels;
 
 pub use binarize::binarize;
 pub use kind::{AnyLayout, LayoutKind, LayoutOptions};

@@ -2,9 +2,11 @@
 //! the single-ray queries run it to the end at once, the batch queries interleave several
 //! (`stream.rs`). Both therefore take exactly the same steps for a ray.
 
-use super::{BoxKernel, WideLayout, LEAF, LEAF_COUNT_SHIFT, LEAF_FIRST_MASK};
+use super::box_kernels::{box_scalar, BoxRay};
+use super::kernels::BoxKernel;
+use super::node::{is_leaf, leaf_span};
+use super::WideLayout;
 use crate::bvh::layout::stack::TraversalStack;
-use crate::bvh::layout::wide_kernels::{box_scalar, BoxRay};
 use crate::geometry::{PreparedRay, Ray};
 use crate::stats::Counter;
 
@@ -200,7 +202,7 @@ impl Traversal {
     /// Whether the next step visits a leaf.
     #[inline(always)]
     pub fn at_leaf(&self) -> bool {
-        self.current & LEAF != 0
+        is_leaf(self.current)
     }
 
     /// Visits the current leaf (see [`Traversal::at_leaf`]): `visit_leaf(first_packet,
@@ -214,9 +216,7 @@ impl Traversal {
         mut visit_leaf: impl FnMut(usize, usize, &mut PreparedRay, &mut C) -> bool,
     ) -> Step {
         counter.node_visited();
-        let current = self.current;
-        let first = (current & LEAF_FIRST_MASK) as usize;
-        let count = ((current & !LEAF) >> LEAF_COUNT_SHIFT) as usize + 1;
+        let (first, count) = leaf_span(self.current);
         if visit_leaf(first, count, &mut self.ray, counter) {
             return Step::Done;
         }

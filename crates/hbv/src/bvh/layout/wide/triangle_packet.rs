@@ -322,8 +322,8 @@ impl TrianglePacket {
 
 #[cfg(test)]
 mod tests {
+    use super::super::box_kernels::tests::ray_strategy;
     use super::*;
-    use crate::bvh::layout::wide_kernels::tests::ray_strategy;
     use crate::geometry::Ray;
     use glam::Vec3;
     use proptest::prelude::*;
@@ -400,7 +400,7 @@ mod tests {
             let packet = TrianglePacket::new(&tris);
             let open = Ray { tmin: 0.0, tmax: f32::INFINITY, ..ray };
             let found = packet.test_scalar(&PreparedRay::new(&open));
-            for lane in crate::bvh::layout::wide_kernels::Lanes(found.hit) {
+            for lane in super::super::lanes::Lanes(found.hit) {
                 let t = found.hit(lane).t;
                 prop_assume!(t > 0.0 && t.is_finite());
                 let below = f32::from_bits(t.to_bits() - 1);

@@ -1,7 +1,8 @@
 //! The SIMD box kernels of [`WideLayout`](super::WideLayout): several boxes against one ray at
-//! once (the triangle kernels are in `wide/triangle_packet.rs`). Each kernel has a scalar twin that defines its answer; the SIMD
-//! versions compute the same IEEE operations in the same order, so they return the same bits
-//! (tested below), and every layout answers exactly like the scalar reference.
+//! once (the triangle kernels are in `triangle_packet.rs`). Each kernel has a scalar twin that
+//! defines its answer; the SIMD versions compute the same IEEE operations in the same order, so
+//! they return the same bits (tested below), and every layout answers exactly like the scalar
+//! reference.
 
 // The kernels index several arrays (near and far sides, origin, direction) with one axis or
 // lane counter; iterators over one of them would hide that symmetry.
@@ -215,24 +216,6 @@ pub(crate) unsafe fn boxes_avx(
     }
 }
 
-/// The set bits of a lane mask, lowest first. Holds only the mask, so the ray it came from may be
-/// changed (its `tmax` shrunk) while the lanes are visited.
-pub(crate) struct Lanes(pub u32);
-
-impl Iterator for Lanes {
-    type Item = usize;
-
-    #[inline]
-    fn next(&mut self) -> Option<usize> {
-        if self.0 == 0 {
-            return None;
-        }
-        let lane = self.0.trailing_zeros() as usize;
-        self.0 &= self.0 - 1;
-        Some(lane)
-    }
-}
-
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
@@ -240,7 +223,7 @@ pub(crate) mod tests {
     use glam::Vec3;
     use proptest::prelude::*;
 
-    /// Rays of the kernels' property tests (here and in `wide/triangle_packet.rs`): coordinates
+    /// Rays of the kernels' property tests (here and in `triangle_packet.rs`): coordinates
     /// that put origins on slab planes and zero direction components, `tmin` 0, tiny or random.
     pub(crate) fn ray_strategy() -> impl Strategy<Value = Ray> {
         let c = || prop_oneof![Just(0.0f32), Just(-0.0), Just(1.0), Just(0.5), -2.0f32..2.0];
