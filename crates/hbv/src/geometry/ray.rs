@@ -168,7 +168,7 @@ impl PreparedRay {
     /// the slab error `δ` below, which the wide kernels' entry distances carry). The margin only
     /// lets the traversal visit a little more; the triangle tests keep the exact interval.
     ///
-    /// **Slab margin** (the wide layouts' box kernels, `bvh/layout/wide_kernels.rs`): every point
+    /// **Slab margin** (the wide layouts' box kernels, `bvh/layout/wide/box_kernels.rs`): every point
     /// of the ray inside a box of the scene has `|t| ≤ T = √3 X` (it lies within `√3 max |scene|`
     /// of the origin's `√3 max |o|`, and `|d| ≥ |d_kz|`), and a computed slab distance
     /// `fl(fl(b − o) · fl(1/d))` is within `δ = 3.01 u T + 3 · 2^-150` of the exact one for every

@@ -1,6 +1,6 @@
 //! The nearest-point search's steps over lanes, in two forms: plain Rust for any CPU, and AVX
 //! intrinsics. The search is compiled twice, for AVX2 and for the x86-64 baseline
-//! (`closest_point.rs`, runtime detection), and takes the form as a type parameter, so each
+//! (`batches.rs`, runtime detection), and takes the form as a type parameter, so each
 //! build uses the one it may.
 //!
 //! - **Masks**: which of eight f32 lower bounds pass the search's threshold, as bits (bit `k`
