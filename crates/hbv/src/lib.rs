@@ -8,6 +8,7 @@
 //! - [`BruteForce`]: the reference every accelerator is tested against.
 //! - [`grid`]: the uniform grid (3D-DDA, mailboxes); [`cache`]: shadow and last-hit caches;
 //!   [`scene_accelerators`]: one structure per ray type.
+//! - [`scene`]: many meshes placed by instances (transforms, masks) in a two-level BVH.
 //! - [`atomic_file`]: files written whole or not at all (saved trees, and the command line's
 //!   outputs).
 //!
@@ -49,8 +50,10 @@ pub mod all_hits;
 pub mod atomic_file;
 pub mod batch_threads;
 pub mod proximity;
+pub mod scene;
 
 pub use all_hits::AllHits;
+pub use scene::Scene;
 
 /// The property tests' case counts (`PROPTEST_CASES`, `HBV_PROPTEST_SCALE`), one file for these
 /// unit tests and the integration tests.

@@ -1,0 +1,336 @@
+//! Scenes: many meshes, each placed by any number of instances, in a two-level BVH.
+//!
+//! Each mesh gets its own BVH once ([`Scene::add_mesh`], any builder and layout by
+//! [`SceneStructure`]); each instance places a mesh by an affine [`InstanceTransform`] in f64
+//! and carries a 32-bit mask ([`Scene::add_instance`]); the top level is a BVH over the
+//! instances' world boxes ([`Scene::build`]). A ray visits the instances whose boxes it meets,
+//! nearest first; in each it is carried into the instance's space by the inverse transform and
+//! traced by the mesh's layout.
+//!
+//! ```
+//! use hbv::glam::{DAffine3, DVec3, Vec3};
+//! use hbv::geometry::Ray;
+//! use hbv::mesh::procedural::icosphere;
+//! use hbv::scene::{InstanceTransform, Scene, SceneRay};
+//!
+//! let mut scene = Scene::new();
+//! let sphere = scene.add_mesh(icosphere(Vec3::ZERO, 1.0, 2));
+//! let left = InstanceTransform::from_translation(DVec3::new(-3.0, 0.0, 0.0)).unwrap();
+//! let right = InstanceTransform::new(DAffine3::from_scale_rotation_translation(
+//!     DVec3::splat(2.0),
+//!     Default::default(),
+//!     DVec3::new(3.0, 0.0, 0.0),
+//! ))
+//! .unwrap();
+//! scene.add_instance(sphere, left, 0b01).unwrap();
+//! let big = scene.add_instance(sphere, right, 0b10).unwrap();
+//! scene.build();
+//!
+//! // From the far right, along -x: the big sphere (radius 2 at x = 3) is hit first, at x ≈ 5.
+//! let ray = SceneRay::new(Ray::new(Vec3::new(10.0, 0.0, 0.0), -Vec3::X));
+//! let hit = scene.intersect(&ray).unwrap();
+//! assert_eq!(hit.instance, big.0);
+//! assert!((hit.t - 5.0).abs() < 0.1);
+//! assert!(hit.normal.x > 0.9); // outward, towards the ray
+//! // A ray that sees only the small sphere passes through the big one.
+//! let hit = scene.intersect(&ray.with_mask(0b01)).unwrap();
+//! assert!((hit.t - 12.0).abs() < 0.1);
+//! ```
+//!
+//! # Accuracy
+//!
+//! The answer on instance `i` is exact (watertight, as on a single mesh) for the carried ray
+//! `(o', d')`: `A^-1 (o - b)` and `A^-1 d` computed in f64 and rounded to f32. Mapped back,
+//! that ray's point at `t` is within `u κ (|o - b| + t |d|)` of the world ray's `o + t d`
+//! (∞-norms, `u = 2^-24`, `κ` the transform's [`InstanceTransform::conditioning`]; the f64 steps
+//! add at most `2^-50 κ (|o| + |b|)`). The flattened scene ([`Scene::flattened`]) rounds the
+//! mapped vertices instead, moving each by at most `u S` (`S` the largest world coordinate of
+//! the instance's box). Both moves together are within (now in the 2-norm, `√3` times larger)
+//!
+//! ```text
+//!   ε = 2^-22 (κ (|o - b| + t |d|) + S) + 2^-48 κ (|o| + |b|)
+//! ```
+//!
+//! So the scene and a brute force over the flattened triangles ([`FlattenedScene::intersect`])
+//! disagree on hit or miss, or on which triangle is hit, only for rays whose line passes within
+//! `ε` of an edge of a triangle involved, or where two different triangles are hit at `t`s
+//! within the bound below (a near tie). Where both hit the same triangle, `t` agrees to
+//!
+//! ```text
+//!   |t_scene - t_flat| ≤ ε / |n̂ · d| + 2^-20 (κ + 1) D / |d|,
+//! ```
+//!
+//! `n̂` the triangle's unit normal and `D` the largest `|p - o|` of its world vertices: moving
+//! the plane or the ray by `ε` moves the hit along the ray by `ε / |n̂ · d|`, and each triangle
+//! test's own `t` is within a few ulps of its coordinates relative to the origin, over `|d|`
+//! (the local test's over `|d'| ≥ |d| / ‖A‖`, its coordinates up to `‖A^-1‖` times the world
+//! ones). The bound is relative to the coordinates' size, not to `t`: an instance far from the
+//! origin is answered as precisely as f32 holds its world coordinates, no better.
+//! `crates/hbv/tests/scene.rs` checks both statements ray by ray and counts the rays excused.
+//!
+//! **No ray is lost at an instance's box**: world boxes are the mesh box's corners mapped in
+//! f64 and rounded outwards, and the top level tests them grown by `2^-22 κ (2 |o| + |b| + S)`
+//! (largest `κ` and `|b| + S` of the scene), more than the carried ray's move above for points
+//! inside the box, so every point the carried ray can hit lies in the box the world ray is
+//! tested against.
+//!
+//! **Ties** are decided as on the flattened scene: at equal `t`, the smaller instance, then the
+//! smaller `prim` ([`SceneHit::is_closer`]), whatever order the instances are visited in.
+
+mod brute_force;
+mod error;
+mod instance;
+mod scene_hit;
+mod structure;
+mod top_level;
+mod transform;
+
+pub use brute_force::FlattenedScene;
+pub use error::SceneError;
+pub use scene_hit::{SceneHit, SceneRay};
+pub use structure::SceneStructure;
+pub use transform::InstanceTransform;
+
+use rayon::prelude::*;
+
+use crate::bvh::layout::AnyLayout;
+use crate::geometry::directed_rounding::f32_above;
+use crate::geometry::{Aabb, PreparedRay, Ray};
+use crate::mesh::{MeshError, TriangleMesh};
+use crate::query::Accelerator;
+use glam::Vec3;
+use instance::Instance;
+use top_level::TopLevel;
+
+/// A mesh's id in its scene: the order of [`Scene::add_mesh`] calls, from 0.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct MeshId(pub u32);
+
+/// An instance's id in its scene: the order of [`Scene::add_instance`] calls, from 0. Hits
+/// report it as [`SceneHit::instance`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct InstanceId(pub u32);
+
+/// A mesh of a scene with its structure, built once however many instances place it.
+#[derive(Clone, Debug)]
+struct SceneMesh {
+    mesh: TriangleMesh,
+    layout: AnyLayout,
+}
+
+/// Meshes, their instances and the top-level BVH over the instances (module notes).
+///
+/// Instances added since the last [`Scene::build`] are answered too, each tested in turn, until
+/// the next build puts them into the top level.
+#[derive(Clone, Debug, Default)]
+pub struct Scene {
+    structure: SceneStructure,
+    meshes: Vec<SceneMesh>,
+    instances: Vec<Instance>,
+    top_level: TopLevel,
+    /// `instances[..indexed]` are in `top_level`.
+    indexed: usize,
+    /// The largest `κ` of any instance, and the largest `|b| + S`: what the top level's box
+    /// growth of a ray is computed from (module notes).
+    largest_conditioning: f64,
+    largest_offset: f64,
+}
+
+/// Rays handed to one rayon task at least, as in the meshes' batches.
+const BATCH_GRAIN: usize = 256;
+
+/// The best hit found so far, its normal not yet computed.
+type BestHit = Option<SceneHit>;
+
+impl Scene {
+    /// An empty scene whose meshes are built by binned SAH and laid out in wide-8 nodes.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// An empty scene whose meshes are built and laid out as `structure` says.
+    pub fn with_structure(structure: SceneStructure) -> Self {
+        Self {
+            structure,
+            ..Self::default()
+        }
+    }
+
+    /// Adds `mesh` and builds its BVH; instances place it by the id returned.
+    pub fn add_mesh(&mut self, mesh: TriangleMesh) -> MeshId {
+        let s = &self.structure;
+        let tree = s.builder.build(&mesh, &s.builder_options);
+        let layout = s.layout.lay_out(&tree, &mesh, &s.layout_options);
+        self.meshes.push(SceneMesh { mesh, layout });
+        MeshId(self.meshes.len() as u32 - 1)
+    }
+
+    /// Places mesh `mesh` by `transform`, seen by rays whose mask shares a bit with `mask`.
+    /// Refused with [`SceneError::UnknownMesh`] for an id this scene did not hand out.
+    pub fn add_instance(
+        &mut self,
+        mesh: MeshId,
+        transform: InstanceTransform,
+        mask: u32,
+    ) -> Result<InstanceId, SceneError> {
+        let Some(scene_mesh) = self.meshes.get(mesh.0 as usize) else {
+            return Err(SceneError::UnknownMesh {
+                mesh,
+                meshes: self.meshes.len(),
+            });
+        };
+        let instance = Instance::new(mesh.0, transform, mask, &scene_mesh.mesh.bounds());
+        if !instance.world_box.is_empty() {
+            let size = f64::from(PreparedRay::scene_size(&instance.world_box));
+            let offset = transform.affine().translation.abs().max_element() + size;
+            self.largest_offset = self.largest_offset.max(offset);
+            self.largest_conditioning = self.largest_conditioning.max(transform.conditioning());
+        }
+        self.instances.push(instance);
+        Ok(InstanceId(self.instances.len() as u32 - 1))
+    }
+
+    /// Builds the top-level BVH over the world boxes of every instance (binned SAH, binary
+    /// nodes).
+    pub fn build(&mut self) {
+        self.top_level = TopLevel::build(self.instances.iter().map(|i| i.world_box));
+        self.indexed = self.instances.len();
+    }
+
+    pub fn mesh_count(&self) -> usize {
+        self.meshes.len()
+    }
+
+    pub fn instance_count(&self) -> usize {
+        self.instances.len()
+    }
+
+    /// The mesh of id `mesh`, as added.
+    pub fn mesh(&self, mesh: MeshId) -> Option<&TriangleMesh> {
+        self.meshes.get(mesh.0 as usize).map(|m| &m.mesh)
+    }
+
+    /// A box holding every world-space point of every instance.
+    pub fn bounds(&self) -> Aabb {
+        self.instances
+            .iter()
+            .fold(Aabb::EMPTY, |b, i| b.union(&i.world_box))
+    }
+
+    /// The scene as one world-space mesh, instance by instance (see [`FlattenedScene`]); fails
+    /// when a mapped vertex does not fit in f32.
+    pub fn flattened(&self) -> Result<FlattenedScene, MeshError> {
+        FlattenedScene::new(self.instances.iter().map(|i| {
+            (
+                &self.meshes[i.mesh as usize].mesh,
+                i.transform.affine(),
+                i.mask,
+            )
+        }))
+    }
+
+    /// The closest hit along the ray among the instances it sees; ties to the smaller instance,
+    /// then the smaller `prim`. Invalid rays ([`Ray::is_valid`]) miss.
+    pub fn intersect(&self, ray: &SceneRay) -> Option<SceneHit> {
+        if !ray.ray.is_valid() || ray.mask == 0 {
+            return None;
+        }
+        let mut best: BestHit = None;
+        let mut prepared = PreparedRay::new(&ray.ray);
+        for id in self.indexed..self.instances.len() {
+            self.closest_in(id as u32, ray, &mut prepared, &mut best);
+        }
+        self.top_level
+            .walk(&mut prepared, self.box_pad(&ray.ray), |id, prepared| {
+                self.closest_in(id, ray, prepared, &mut best);
+                false
+            });
+        best.map(|hit| {
+            let i = &self.instances[hit.instance as usize];
+            let triangle = self.meshes[i.mesh as usize]
+                .mesh
+                .triangle(hit.prim as usize);
+            SceneHit {
+                normal: i.world_normal(&triangle),
+                ..hit
+            }
+        })
+    }
+
+    /// Whether anything the ray sees is hit within its `[tmin, tmax]`; stops at the first hit.
+    pub fn occluded(&self, ray: &SceneRay) -> bool {
+        if !ray.ray.is_valid() || ray.mask == 0 {
+            return false;
+        }
+        let hit_in = |id: u32| {
+            let instance = &self.instances[id as usize];
+            ray.sees(instance.mask)
+                && self.meshes[instance.mesh as usize]
+                    .layout
+                    .occluded(&instance.carry(&ray.ray))
+        };
+        if (self.indexed..self.instances.len()).any(|id| hit_in(id as u32)) {
+            return true;
+        }
+        let mut occluded = false;
+        let mut prepared = PreparedRay::new(&ray.ray);
+        self.top_level
+            .walk(&mut prepared, self.box_pad(&ray.ray), |id, _| {
+                occluded = hit_in(id);
+                occluded
+            });
+        occluded
+    }
+
+    /// [`Scene::intersect`] of every ray, in parallel on the current rayon pool.
+    pub fn intersect_batch(&self, rays: &[SceneRay]) -> Vec<Option<SceneHit>> {
+        rays.par_iter()
+            .with_min_len(BATCH_GRAIN)
+            .map(|ray| self.intersect(ray))
+            .collect()
+    }
+
+    /// [`Scene::occluded`] of every ray, in parallel on the current rayon pool.
+    pub fn occluded_batch(&self, rays: &[SceneRay]) -> Vec<bool> {
+        rays.par_iter()
+            .with_min_len(BATCH_GRAIN)
+            .map(|ray| self.occluded(ray))
+            .collect()
+    }
+
+    /// Traces instance `id`'s mesh with the ray carried into its space, up to the best `t` so
+    /// far, and keeps its hit if it is closer (ties: smaller instance, then smaller `prim`).
+    #[inline]
+    fn closest_in(&self, id: u32, ray: &SceneRay, prepared: &mut PreparedRay, best: &mut BestHit) {
+        let instance = &self.instances[id as usize];
+        if !ray.sees(instance.mask) {
+            return;
+        }
+        let world = ray.ray.with_interval(ray.ray.tmin, prepared.tmax);
+        let layout = &self.meshes[instance.mesh as usize].layout;
+        let Some(hit) = layout.intersect(&instance.carry(&world)) else {
+            return;
+        };
+        if SceneHit::is_closer(hit.t, id, hit.prim, best) {
+            prepared.tmax = hit.t;
+            *best = Some(SceneHit {
+                t: hit.t,
+                u: hit.u,
+                v: hit.v,
+                prim: hit.prim,
+                instance: id,
+                // Computed once, for the final hit (`Scene::intersect`).
+                normal: Vec3::ZERO,
+            });
+        }
+    }
+
+    /// How far the top level grows each box for `ray`: `2^-22 κ (2 |o| + |b| + S)` with the
+    /// scene's largest `κ` and `|b| + S` (module notes), rounded up.
+    fn box_pad(&self, ray: &Ray) -> f32 {
+        let origin = f64::from(ray.origin.abs().max_element());
+        let pad = self.largest_conditioning * (2.0 * origin + self.largest_offset)
+            / f64::from(1u32 << 22);
+        f32_above(pad).max(f32::MIN_POSITIVE)
+    }
+}

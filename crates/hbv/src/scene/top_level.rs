@@ -1,0 +1,239 @@
+//! `TopLevel`: the binary BVH over the instances' world boxes, built by binned SAH, traced
+//! nearest child first.
+//!
+//! The mesh builders (`bvh/build/`) build over a mesh's triangles; the top level builds over
+//! boxes, one per instance, so it has its own small builder here. Its nodes are binary; wide
+//! nodes for the top level are a later step.
+
+use glam::Vec3;
+
+use crate::geometry::{Aabb, PreparedRay};
+
+/// A node: its box and, for a leaf, the one instance it holds; an interior node's children are
+/// the nodes `first` and `first + 1`.
+#[derive(Clone, Copy, Debug)]
+struct TopNode {
+    bounds: Aabb,
+    /// Leaf: the instance id. Interior: the index of the first child.
+    first: u32,
+    is_leaf: bool,
+}
+
+/// The top-level tree: one leaf per instance with a nonempty world box.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct TopLevel {
+    nodes: Vec<TopNode>,
+}
+
+/// Centroid bins per axis of the binned SAH (Wald 2007, "On fast construction of SAH-based
+/// bounding volume hierarchies").
+const BINS: usize = 16;
+
+/// An instance as the builder sees it.
+#[derive(Clone, Copy)]
+struct Item {
+    id: u32,
+    bounds: Aabb,
+    centroid: Vec3,
+}
+
+impl TopLevel {
+    /// Builds over `boxes[i]`, the world box of instance `i`; empty boxes are left out (nothing
+    /// can hit them).
+    pub fn build(boxes: impl IntoIterator<Item = Aabb>) -> Self {
+        let mut items: Vec<Item> = boxes
+            .into_iter()
+            .enumerate()
+            .filter(|(_, b)| !b.is_empty())
+            .map(|(id, bounds)| Item {
+                id: id as u32,
+                bounds,
+                centroid: bounds.center(),
+            })
+            .collect();
+        let mut top = TopLevel {
+            nodes: Vec::with_capacity(2 * items.len()),
+        };
+        if !items.is_empty() {
+            top.nodes.push(TopNode {
+                bounds: Aabb::EMPTY,
+                first: 0,
+                is_leaf: true,
+            });
+            top.build_node(0, &mut items);
+        }
+        top
+    }
+
+    /// Fills node `index` with `items`: a leaf for one item, else two children split where the
+    /// binned SAH cost `SA(L) · |L| + SA(R) · |R|` is least.
+    fn build_node(&mut self, index: usize, items: &mut [Item]) {
+        let bounds = items.iter().fold(Aabb::EMPTY, |b, i| b.union(&i.bounds));
+        if let [item] = items {
+            self.nodes[index] = TopNode {
+                bounds,
+                first: item.id,
+                is_leaf: true,
+            };
+            return;
+        }
+        let split = binned_sah_split(items);
+        let first = self.nodes.len();
+        self.nodes[index] = TopNode {
+            bounds,
+            first: first as u32,
+            is_leaf: false,
+        };
+        let placeholder = self.nodes[index];
+        self.nodes.extend([placeholder, placeholder]);
+        let (left, right) = items.split_at_mut(split);
+        self.build_node(first, left);
+        self.build_node(first + 1, right);
+    }
+
+    /// Walks the instances whose boxes the ray meets within its `[tmin, tmax]`, nearer child
+    /// first, calling `visit(instance, ray)`; `visit` may shrink `ray.tmax` (a closest-hit walk)
+    /// and returns `true` to stop the walk (an any-hit walk).
+    ///
+    /// Every box is tested grown by `pad` on each side (see `Scene::box_pad`): the rounding of a
+    /// ray carried into an instance's space moves its points by up to that much in world space,
+    /// and the grown boxes keep every point it could hit. The slab test is [`Aabb::hit_by`]'s,
+    /// with the ray's box margins set for the grown root box.
+    pub fn walk(
+        &self,
+        ray: &mut PreparedRay,
+        pad: f32,
+        mut visit: impl FnMut(u32, &mut PreparedRay) -> bool,
+    ) {
+        let Some(root) = self.nodes.first() else {
+            return;
+        };
+        let pad = Vec3::splat(pad);
+        let grown = |b: &Aabb| Aabb::new(b.min - pad, b.max + pad);
+        ray.bound_errors_within(&grown(&root.bounds));
+        let Some((root_near, _)) = grown(&root.bounds).intersect_interval(ray) else {
+            return;
+        };
+        let mut stack: Vec<(u32, f32)> = Vec::with_capacity(32);
+        stack.push((0, root_near));
+        while let Some((index, near)) = stack.pop() {
+            // A nearer hit found since the push culls the node.
+            if near > ray.box_tmax() {
+                continue;
+            }
+            let node = &self.nodes[index as usize];
+            if node.is_leaf {
+                if visit(node.first, ray) {
+                    return;
+                }
+                continue;
+            }
+            let (a, b) = (node.first, node.first + 1);
+            let near_a = grown(&self.nodes[a as usize].bounds).intersect_interval(ray);
+            let near_b = grown(&self.nodes[b as usize].bounds).intersect_interval(ray);
+            match (near_a, near_b) {
+                (Some((na, _)), Some((nb, _))) => {
+                    // The farther child waits below the nearer one.
+                    if na <= nb {
+                        stack.extend([(b, nb), (a, na)]);
+                    } else {
+                        stack.extend([(a, na), (b, nb)]);
+                    }
+                }
+                (Some((na, _)), None) => stack.push((a, na)),
+                (None, Some((nb, _))) => stack.push((b, nb)),
+                (None, None) => {}
+            }
+        }
+    }
+}
+
+/// Sorts `items` around the cheapest binned-SAH plane and returns the size of the left part
+/// (between 1 and `items.len() - 1`). Items whose centroids cannot be told apart by bins are
+/// split in half, in their order.
+fn binned_sah_split(items: &mut [Item]) -> usize {
+    let centroids = items
+        .iter()
+        .fold(Aabb::EMPTY, |b, i| b.union_point(i.centroid));
+    let extent = centroids.extent();
+    let mut best: Option<(f32, usize, f32)> = None; // (cost, axis, plane)
+    for axis in 0..3 {
+        if !(extent[axis] > 0.0) {
+            continue;
+        }
+        let lo = centroids.min[axis];
+        let scale = BINS as f32 / extent[axis];
+        let bin_of = |c: f32| (((c - lo) * scale) as usize).min(BINS - 1);
+        let mut bin_boxes = [Aabb::EMPTY; BINS];
+        let mut bin_counts = [0usize; BINS];
+        for item in items.iter() {
+            let bin = bin_of(item.centroid[axis]);
+            bin_boxes[bin] = bin_boxes[bin].union(&item.bounds);
+            bin_counts[bin] += 1;
+        }
+        // Areas and counts right of each plane, swept from the right.
+        let mut right_cost = [0.0f32; BINS];
+        let (mut right_box, mut right_count) = (Aabb::EMPTY, 0usize);
+        for plane in (1..BINS).rev() {
+            right_box = right_box.union(&bin_boxes[plane]);
+            right_count += bin_counts[plane];
+            right_cost[plane] = right_box.surface_area() * right_count as f32;
+        }
+        let (mut left_box, mut left_count) = (Aabb::EMPTY, 0usize);
+        for plane in 1..BINS {
+            left_box = left_box.union(&bin_boxes[plane - 1]);
+            left_count += bin_counts[plane - 1];
+            if left_count == 0 || left_count == items.len() {
+                continue;
+            }
+            let cost = left_box.surface_area() * left_count as f32 + right_cost[plane];
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, axis, plane as f32));
+            }
+        }
+    }
+    let Some((_, axis, plane)) = best else {
+        return items.len() / 2;
+    };
+    let lo = centroids.min[axis];
+    let scale = BINS as f32 / extent[axis];
+    let bin_of = |c: f32| (((c - lo) * scale) as usize).min(BINS - 1);
+    let plane = plane as usize;
+    let mut left = 0;
+    for i in 0..items.len() {
+        if bin_of(items[i].centroid[axis]) < plane {
+            items.swap(i, left);
+            left += 1;
+        }
+    }
+    left
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::Ray;
+
+    #[test]
+    fn walk_finds_every_box_the_ray_meets_nearest_first() {
+        let boxes: Vec<Aabb> = (0..40)
+            .map(|i| {
+                let x = (i * 7 % 40) as f32;
+                Aabb::new(Vec3::new(x, -0.5, -0.5), Vec3::new(x + 0.5, 0.5, 0.5))
+            })
+            .chain([Aabb::EMPTY])
+            .collect();
+        let top = TopLevel::build(boxes.iter().copied());
+        let mut ray = PreparedRay::new(&Ray::new(Vec3::new(-1.0, 0.0, 0.0), Vec3::X));
+        let mut seen = Vec::new();
+        top.walk(&mut ray, 0.0, |id, _| {
+            seen.push(id);
+            false
+        });
+        let xs: Vec<f32> = seen.iter().map(|&i| boxes[i as usize].min.x).collect();
+        assert_eq!(seen.len(), 40);
+        assert!(xs.windows(2).all(|w| w[0] < w[1]), "{xs:?}");
+        let mut miss = PreparedRay::new(&Ray::new(Vec3::new(-1.0, 2.0, 0.0), Vec3::X));
+        top.walk(&mut miss, 0.0, |_, _| panic!("no box is met"));
+    }
+}
