@@ -156,9 +156,9 @@ fn binned_sah_split(items: &mut [Item]) -> usize {
         .iter()
         .fold(Aabb::EMPTY, |b, i| b.union_point(i.centroid));
     let extent = centroids.extent();
-    let mut best: Option<(f32, usize, f32)> = None; // (cost, axis, plane)
+    let mut best: Option<(f32, usize, usize)> = None; // (cost, axis, plane)
     for axis in 0..3 {
-        if !(extent[axis] > 0.0) {
+        if extent[axis] <= 0.0 || extent[axis].is_nan() {
             continue;
         }
         let lo = centroids.min[axis];
@@ -188,7 +188,7 @@ fn binned_sah_split(items: &mut [Item]) -> usize {
             }
             let cost = left_box.surface_area() * left_count as f32 + right_cost[plane];
             if best.is_none_or(|(c, _, _)| cost < c) {
-                best = Some((cost, axis, plane as f32));
+                best = Some((cost, axis, plane));
             }
         }
     }
@@ -198,7 +198,6 @@ fn binned_sah_split(items: &mut [Item]) -> usize {
     let lo = centroids.min[axis];
     let scale = BINS as f32 / extent[axis];
     let bin_of = |c: f32| (((c - lo) * scale) as usize).min(BINS - 1);
-    let plane = plane as usize;
     let mut left = 0;
     for i in 0..items.len() {
         if bin_of(items[i].centroid[axis]) < plane {
