@@ -7,7 +7,7 @@ use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 use hbv::geometry::Ray;
 use hbv::mesh::procedural::{ground_plane, icosphere, torus};
 use hbv::scene::{
-    FlattenedScene, InstanceTransform, MeshId, Scene, SceneError, SceneHit, SceneRay,
+    FlattenedScene, InstanceId, InstanceTransform, MeshId, Scene, SceneError, SceneHit, SceneRay,
     SceneStructure,
 };
 use hbv::TriangleMesh;
@@ -137,13 +137,14 @@ fn make_scene(spec: &SceneSpec, partly_built: bool) -> (Scene, FlattenedScene) {
 /// a world vertex (through edges) and at a corner or face of an instance's world box.
 fn rays(spec: &SceneSpec, scene: &Scene, flat: &FlattenedScene) -> Vec<SceneRay> {
     let far = spec.far.as_vec3();
-    let bounds = scene.bounds();
     let positions = flat.mesh.positions();
     spec.rays
         .iter()
         .enumerate()
         .map(|(k, &(origin, dir, mask, kind))| {
             let origin = origin + far;
+            let instance = InstanceId((k % scene.instance_count()) as u32);
+            let instance_box = scene.instance_bounds(instance).unwrap();
             // A point near a face chosen by the seeds: most such rays hit something.
             let face =
                 flat.mesh.indices()[(kind as usize * 104_729 + k * 7) % flat.mesh.indices().len()];
@@ -161,21 +162,23 @@ fn rays(spec: &SceneSpec, scene: &Scene, flat: &FlattenedScene) -> Vec<SceneRay>
                 6 => inside - origin,
                 3 => positions[(kind as usize * 7919 + k * 31) % positions.len()] - origin,
                 4 => {
+                    // At a corner of an instance's world box.
                     let corner = Vec3::select(
                         glam::BVec3::new(kind & 8 != 0, kind & 16 != 0, kind & 32 != 0),
-                        bounds.min,
-                        bounds.max,
+                        instance_box.min,
+                        instance_box.max,
                     );
                     corner - origin
                 }
                 _ => {
-                    // Through a face of the scene's box, at a point set by the direction seed.
+                    // Through a face of an instance's world box, at a point set by the direction
+                    // seed.
                     let t = (dir + Vec3::ONE) * 0.5;
-                    let mut target = bounds.min + t * (bounds.max - bounds.min);
+                    let mut target = instance_box.min + t * (instance_box.max - instance_box.min);
                     target[k % 3] = if kind & 64 != 0 {
-                        bounds.min[k % 3]
+                        instance_box.min[k % 3]
                     } else {
-                        bounds.max[k % 3]
+                        instance_box.max[k % 3]
                     };
                     target - origin
                 }
@@ -537,6 +540,7 @@ fn bad_transforms_and_unknown_meshes_are_refused() {
         .add_instance(MeshId(id.0 + 1), InstanceTransform::IDENTITY, 1)
         .is_err());
     assert_eq!(scene.instance_count(), 0);
+    assert_eq!(scene.instance_bounds(InstanceId(0)), None);
 }
 
 #[test]

@@ -210,6 +210,12 @@ impl Scene {
         self.meshes.get(mesh.0 as usize).map(|m| &m.mesh)
     }
 
+    /// The world box of instance `instance` (see the module notes): `None` for an id the scene
+    /// did not hand out, [`Aabb::EMPTY`] for an instance of an empty mesh.
+    pub fn instance_bounds(&self, instance: InstanceId) -> Option<Aabb> {
+        self.instances.get(instance.0 as usize).map(|i| i.world_box)
+    }
+
     /// A box holding every world-space point of every instance.
     pub fn bounds(&self) -> Aabb {
         self.instances
