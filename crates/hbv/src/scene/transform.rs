@@ -135,9 +135,10 @@ impl InstanceTransform {
         self.inverse
     }
 
-    /// `κ∞(A) = ‖A‖∞ ‖A^-1‖∞` of the linear part (1 for rotations scaled uniformly about the
-    /// axes, at most `3 ×` that for other rotations): the factor by which the f32 rounding of a
-    /// ray carried into the instance's space grows in world space.
+    /// `κ∞(A) = ‖A‖∞ ‖A^-1‖∞` of the linear part: 1 for a uniform scale (and axis
+    /// permutations, mirrors), at most 3 for any rotation, at most `3 s_max / s_min` for a
+    /// rotation and scales `s`. The factor by which the f32 rounding of a ray carried into the
+    /// instance's space grows in world space.
     pub fn conditioning(&self) -> f64 {
         self.conditioning
     }
