@@ -32,24 +32,15 @@ pub(super) fn parse(
 ) -> Result<TriangleMesh, MeshError> {
     let (document, buffers) = document_and_buffers(path, bytes, folder)?;
 
-    let mut out = Flattened {
+    let reader = PrimitiveReader::new(path, &buffers);
+    let mut out = MeshParts::default();
+    walk_default_scene(
         path,
-        buffers: &buffers,
-        buffer_bytes: buffers.iter().map(|b| b.len()).sum(),
-        positions: Vec::new(),
-        triangles: Vec::new(),
-    };
-    match document
-        .default_scene()
-        .or_else(|| document.scenes().next())
-    {
-        Some(scene) => out.walk(&document, scene.nodes().collect())?,
-        None => {
-            for mesh in document.meshes() {
-                out.append_mesh(&mesh, &Mat4::IDENTITY)?;
-            }
-        }
-    }
+        &document,
+        Mat4::IDENTITY,
+        |parent, node| Ok(*parent * Mat4::from_cols_array_2d(&node.transform().matrix())),
+        |_, mesh, world| reader.append_mesh(&mesh, world, TriangleModes::All, &mut out),
+    )?;
 
     if out.triangles.is_empty() {
         return Err(MeshError::invalid(
@@ -61,8 +52,9 @@ pub(super) fn parse(
     TriangleMesh::from_parts(path.into(), out.positions, out.triangles)
 }
 
-/// The document and its buffers, read as [`parse`] reads them.
-fn document_and_buffers(
+/// The document and its buffers, read as [`parse`] reads them: the GLB header, every
+/// primitive's POSITION accessor and every buffer checked.
+pub(crate) fn document_and_buffers(
     path: &Path,
     bytes: &[u8],
     folder: Option<&Path>,
@@ -238,65 +230,125 @@ fn read_buffer_file(folder: &Path, uri: &str, length: usize) -> Result<Vec<u8>, 
     Ok(data)
 }
 
-/// The mesh being assembled from the scene.
-struct Flattened<'a> {
-    path: &'a Path,
-    buffers: &'a [buffer::Data],
-    /// Bytes in all buffers: no honest accessor declares more elements, or a larger offset.
-    buffer_bytes: usize,
-    positions: Vec<Vec3>,
-    triangles: Vec<[u32; 3]>,
+/// Positions and triangles being assembled from a glTF file's primitives.
+#[derive(Default)]
+pub(crate) struct MeshParts {
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+/// Which primitive modes give triangles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum TriangleModes {
+    /// TRIANGLES, TRIANGLE_STRIP and TRIANGLE_FAN (the flattened mesh of
+    /// [`TriangleMesh::load`]).
+    All,
+    /// TRIANGLES (mode 4) only, as `RAYS.md`'s "Scenes (glTF)" defines a scene's meshes.
+    TrianglesOnly,
+}
+
+impl TriangleModes {
+    fn accepts(self, mode: Mode) -> bool {
+        match self {
+            TriangleModes::All => matches!(
+                mode,
+                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
+            ),
+            TriangleModes::TrianglesOnly => mode == Mode::Triangles,
+        }
+    }
 }
 
 /// A step of the depth-first walk.
-enum Visit<'a> {
+enum Visit<'a, T> {
     /// Process a node below a parent with this world transform.
-    Enter(Node<'a>, Mat4),
+    Enter(Node<'a>, T),
     /// The node's subtree is done.
     Leave(usize),
 }
 
-impl Flattened<'_> {
-    /// Walks the node trees below `roots` depth-first in order (iteratively, so deep
-    /// hierarchies cannot overflow the stack), appending each node's mesh in world space.
-    fn walk<'d>(&mut self, document: &'d Document, roots: Vec<Node<'d>>) -> Result<(), MeshError> {
-        let mut on_path = vec![false; document.nodes().len()];
-        let mut stack: Vec<Visit<'d>> = roots
-            .into_iter()
-            .rev()
-            .map(|node| Visit::Enter(node, Mat4::IDENTITY))
-            .collect();
-        while let Some(visit) = stack.pop() {
-            let (node, parent) = match visit {
-                Visit::Enter(node, parent) => (node, parent),
-                Visit::Leave(index) => {
-                    on_path[index] = false;
-                    continue;
-                }
-            };
-            let index = node.index();
-            if on_path[index] {
-                return Err(MeshError::invalid(
-                    self.path,
-                    format!("node {index}"),
-                    "the node is its own ancestor (cycle in the node hierarchy)",
-                ));
-            }
-            on_path[index] = true;
-            let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
-            if let Some(mesh) = node.mesh() {
-                self.append_mesh(&mesh, &world)?;
-            }
-            stack.push(Visit::Leave(index));
-            let children: Vec<Node<'d>> = node.children().collect();
-            stack.extend(
-                children
-                    .into_iter()
-                    .rev()
-                    .map(|child| Visit::Enter(child, world)),
-            );
+/// Walks the default scene (else scene 0) depth-first in pre-order: roots in the scene's order,
+/// children in order (iteratively, so deep hierarchies cannot overflow the stack). A node's
+/// world transform is `compose(parent's, node)` (`identity` above the roots); `visit(node,
+/// mesh, world)` is called for every node that carries a mesh. A file without any scene visits
+/// every mesh once, in order, with `identity` and no node. A node that is its own ancestor is
+/// an error naming it.
+pub(crate) fn walk_default_scene<'d, T>(
+    path: &Path,
+    document: &'d Document,
+    identity: T,
+    mut compose: impl FnMut(&T, &Node<'d>) -> Result<T, MeshError>,
+    mut visit: impl FnMut(Option<&Node<'d>>, Mesh<'d>, &T) -> Result<(), MeshError>,
+) -> Result<(), MeshError>
+where
+    T: Clone,
+{
+    let Some(scene) = document
+        .default_scene()
+        .or_else(|| document.scenes().next())
+    else {
+        for mesh in document.meshes() {
+            visit(None, mesh, &identity)?;
         }
-        Ok(())
+        return Ok(());
+    };
+    let roots: Vec<Node<'d>> = scene.nodes().collect();
+    let mut on_path = vec![false; document.nodes().len()];
+    let mut stack: Vec<Visit<'d, T>> = roots
+        .into_iter()
+        .rev()
+        .map(|node| Visit::Enter(node, identity.clone()))
+        .collect();
+    while let Some(visit_step) = stack.pop() {
+        let (node, parent) = match visit_step {
+            Visit::Enter(node, parent) => (node, parent),
+            Visit::Leave(index) => {
+                on_path[index] = false;
+                continue;
+            }
+        };
+        let index = node.index();
+        if on_path[index] {
+            return Err(MeshError::invalid(
+                path,
+                format!("node {index}"),
+                "the node is its own ancestor (cycle in the node hierarchy)",
+            ));
+        }
+        on_path[index] = true;
+        let world = compose(&parent, &node)?;
+        if let Some(mesh) = node.mesh() {
+            visit(Some(&node), mesh, &world)?;
+        }
+        stack.push(Visit::Leave(index));
+        let children: Vec<Node<'d>> = node.children().collect();
+        stack.extend(
+            children
+                .into_iter()
+                .rev()
+                .map(|child| Visit::Enter(child, world.clone())),
+        );
+    }
+    Ok(())
+}
+
+/// Reads the triangles of a file's mesh primitives, checking each accessor before the `gltf`
+/// crate's reader sees it.
+pub(crate) struct PrimitiveReader<'a> {
+    path: &'a Path,
+    buffers: &'a [buffer::Data],
+    /// Bytes in all buffers: no honest accessor declares more elements, or a larger offset.
+    buffer_bytes: usize,
+}
+
+impl<'a> PrimitiveReader<'a> {
+    /// A reader of the primitives whose data lies in `buffers` (errors name `path`).
+    pub(crate) fn new(path: &'a Path, buffers: &'a [buffer::Data]) -> Self {
+        Self {
+            path,
+            buffers,
+            buffer_bytes: buffers.iter().map(|b| b.len()).sum(),
+        }
     }
 
     /// [`check_accessor`] against this file's buffers.
@@ -304,14 +356,19 @@ impl Flattened<'_> {
         check_accessor(self.path, self.buffer_bytes, accessor, what)
     }
 
-    /// Appends the triangle primitives of `mesh`, in order, transformed by `world`.
-    fn append_mesh(&mut self, mesh: &Mesh<'_>, world: &Mat4) -> Result<(), MeshError> {
+    /// Appends the primitives of `mesh` whose mode `modes` accepts to `out`, in order, their
+    /// positions transformed by `world` (f32) and their triangles indexing `out.positions`.
+    /// Errors name the mesh and primitive (or the accessor) and the reason.
+    pub(crate) fn append_mesh(
+        &self,
+        mesh: &Mesh<'_>,
+        world: &Mat4,
+        modes: TriangleModes,
+        out: &mut MeshParts,
+    ) -> Result<(), MeshError> {
         for primitive in mesh.primitives() {
             let mode = primitive.mode();
-            if !matches!(
-                mode,
-                Mode::Triangles | Mode::TriangleStrip | Mode::TriangleFan
-            ) {
+            if !modes.accepts(mode) {
                 continue;
             }
             let place = format!("mesh {} primitive {}", mesh.index(), primitive.index());
@@ -333,19 +390,19 @@ impl Flattened<'_> {
             }
             self.check_accessor(&accessor, "POSITION")?;
             let count = accessor.count();
-            let base = self.positions.len();
+            let base = out.positions.len();
             if count > 0 {
                 let positions = reader.read_positions().ok_or_else(|| {
                     error("POSITION data is missing or lies outside its buffer".into())
                 })?;
                 if *world == Mat4::IDENTITY {
-                    self.positions.extend(positions.map(Vec3::from));
+                    out.positions.extend(positions.map(Vec3::from));
                 } else {
-                    self.positions
+                    out.positions
                         .extend(positions.map(|p| world.transform_point3(Vec3::from(p))));
                 }
             }
-            if u32::try_from(self.positions.len()).is_err() {
+            if u32::try_from(out.positions.len()).is_err() {
                 return Err(error("more than 2^32 vertices in the scene".into()));
             }
 
@@ -392,12 +449,12 @@ impl Flattened<'_> {
                             v.len()
                         )));
                     }
-                    self.triangles
+                    out.triangles
                         .extend(v.chunks_exact(3).map(|t| [at(t[0]), at(t[1]), at(t[2])]));
                 }
                 // glTF 2.0 spec, 3.7.2.1: p_i = {v_i, v_{i+(1+i%2)}, v_{i+(2-i%2)}}.
                 Mode::TriangleStrip => {
-                    self.triangles
+                    out.triangles
                         .extend((0..v.len().saturating_sub(2)).map(|i| {
                             if i % 2 == 0 {
                                 [at(v[i]), at(v[i + 1]), at(v[i + 2])]
@@ -407,7 +464,7 @@ impl Flattened<'_> {
                         }))
                 }
                 // glTF 2.0 spec, 3.7.2.1: p_i = {v_{i+1}, v_{i+2}, v_0}.
-                Mode::TriangleFan => self.triangles.extend(
+                Mode::TriangleFan => out.triangles.extend(
                     (0..v.len().saturating_sub(2)).map(|i| [at(v[i + 1]), at(v[i + 2]), at(v[0])]),
                 ),
                 _ => {}

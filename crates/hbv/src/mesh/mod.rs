@@ -5,7 +5,7 @@
 
 mod error;
 mod format;
-mod gltf;
+pub(crate) mod gltf;
 mod obj;
 mod ply;
 pub mod procedural;
@@ -179,13 +179,13 @@ pub fn read_gltf(path: &Path) -> Result<(::gltf::Document, Vec<::gltf::buffer::D
 }
 
 /// The bytes of a mesh file, devices refused ([`refuse_devices`]).
-fn read_mesh_file(path: &Path) -> Result<Vec<u8>, MeshError> {
+pub(crate) fn read_mesh_file(path: &Path) -> Result<Vec<u8>, MeshError> {
     refuse_devices(path, "a mesh file").map_err(|e| MeshError::io(path, e))?;
     std::fs::read(path).map_err(|e| MeshError::io(path, e))
 }
 
 /// The folder holding `path`, where a glTF file's external buffers are looked for.
-fn folder_of(path: &Path) -> &Path {
+pub(crate) fn folder_of(path: &Path) -> &Path {
     match path.parent() {
         Some(dir) if !dir.as_os_str().is_empty() => dir,
         _ => Path::new("."),
