@@ -6,6 +6,10 @@
 //! listed and children in order, and every triangle primitive of a node's mesh is appended in
 //! primitive order with the node's world transform applied (f32 math). Triangle ids follow
 //! that order. Point and line primitives are skipped; images are never loaded.
+//!
+//! The walk ([`walk_default_scene`]) and the reading of a mesh's primitives
+//! ([`PrimitiveReader`]) are shared with the scene loader (`scene/gltf.rs`), which walks the
+//! same nodes with f64 transforms and reads each mesh once, untransformed.
 
 use std::path::Path;
 

@@ -79,6 +79,7 @@
 
 mod brute_force;
 mod error;
+mod gltf;
 mod instance;
 mod scene_hit;
 mod structure;
