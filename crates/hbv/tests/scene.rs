@@ -768,13 +768,21 @@ fn a_moved_instance_is_found_where_it_is_before_the_update() {
     assert_eq!(scene.intersect(&down(16.0)).unwrap().instance, 40);
     assert_eq!(scene.intersect(&down(24.0)).unwrap().instance, 6);
     assert_eq!(scene.update(), TopLevelUpdate::Unchanged);
-    // Moving every instance far rebuilds.
+    // Mirrored, the line keeps its tree: a refit is as good as a rebuild.
     for (k, &id) in ids.iter().enumerate().filter(|&(k, _)| k != 4) {
         scene.set_transform(id, at(-4.0 * k as f64)).unwrap();
     }
+    assert_eq!(scene.update(), TopLevelUpdate::Refitted);
+    assert_eq!(scene.intersect(&down(-24.0)).unwrap().instance, 6);
+    // Shuffled along it, the old tree's boxes overlap everywhere: a rebuild.
+    for (k, &id) in ids.iter().enumerate().filter(|&(k, _)| k != 4) {
+        scene
+            .set_transform(id, at(4.0 * (k * 17 % 40) as f64))
+            .unwrap();
+    }
     assert_eq!(scene.update(), TopLevelUpdate::Rebuilt);
     scene.validate().unwrap();
-    assert_eq!(scene.intersect(&down(-24.0)).unwrap().instance, 6);
+    assert_eq!(scene.intersect(&down(88.0)).unwrap().instance, 6);
     let cost = scene.top_level_cost();
     assert_eq!(cost.current, cost.at_build);
 }

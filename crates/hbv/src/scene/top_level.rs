@@ -97,12 +97,16 @@ impl TopLevel {
 
     /// Recomputes every box bottom-up from `leaf_box(instance)`, keeping the topology (an empty
     /// box for a removed instance). Children follow their parent in `nodes`, so a backwards
-    /// sweep finishes each child before its parent: `O(nodes)`, no stack.
-    pub fn refit(&mut self, leaf_box: impl Fn(u32) -> Aabb) {
+    /// sweep finishes each child before its parent: `O(nodes)`, no stack. Returns the number of
+    /// leaves left with an empty box (holes).
+    pub fn refit(&mut self, leaf_box: impl Fn(u32) -> Aabb) -> usize {
+        let mut holes = 0;
         for index in (0..self.nodes.len()).rev() {
             let node = self.nodes[index];
             self.nodes[index].bounds = if node.is_leaf {
-                leaf_box(node.first)
+                let bounds = leaf_box(node.first);
+                holes += usize::from(bounds.is_empty());
+                bounds
             } else {
                 let first = node.first as usize;
                 self.nodes[first]
@@ -110,6 +114,12 @@ impl TopLevel {
                     .union(&self.nodes[first + 1].bounds)
             };
         }
+        holes
+    }
+
+    /// The number of leaves: a binary tree of `n` nodes has `(n + 1) / 2`.
+    pub fn leaf_count(&self) -> usize {
+        self.nodes.len().div_ceil(2)
     }
 
     /// Hangs a leaf for `instance` (world box `bounds`, not empty) into the tree: down from the
@@ -389,7 +399,8 @@ mod tests {
             *b = Aabb::new(b.min + Vec3::Y * 3.0, b.max + Vec3::Y * 3.0);
         }
         boxes[7] = Aabb::EMPTY;
-        top.refit(|id| boxes[id as usize]);
+        assert_eq!(top.refit(|id| boxes[id as usize]), 1);
+        assert_eq!(top.leaf_count(), 30);
         let leaves = top.check_nesting().unwrap();
         assert_eq!(leaves.len(), 30);
         for (id, bounds) in leaves {
