@@ -826,3 +826,101 @@ fn unknown_and_removed_instances_are_refused() {
     assert_eq!(scene.intersect(&ray), None);
     assert_eq!(scene.flattened().unwrap().offsets, vec![0, 0]);
 }
+
+#[test]
+fn a_mesh_whose_vertices_move_answers_as_one_built_at_its_new_place() {
+    // A torus that swells and twists, placed by three instances (one of them removed): after
+    // each move the scene answers as a scene built afresh from the moved mesh, before and
+    // after the update.
+    let rest = torus(Vec3::ZERO, 1.0, 0.35, 24, 12);
+    let placements = [
+        DAffine3::IDENTITY,
+        DAffine3::from_scale_rotation_translation(
+            DVec3::new(1.5, -1.0, 0.5),
+            DQuat::from_rotation_x(0.7),
+            DVec3::new(4.0, 0.0, 0.0),
+        ),
+        DAffine3::from_translation(DVec3::new(-4.0, 1.0, 0.0)),
+    ];
+    let mut scene = Scene::new();
+    let sphere = scene.add_mesh(icosphere(Vec3::new(0.0, 4.0, 0.0), 1.0, 1));
+    let moving = scene.add_mesh(rest.clone());
+    scene
+        .add_instance(sphere, InstanceTransform::IDENTITY, u32::MAX)
+        .unwrap();
+    for placement in placements {
+        let transform = InstanceTransform::new(placement).unwrap();
+        scene.add_instance(moving, transform, u32::MAX).unwrap();
+    }
+    scene.build();
+    scene.remove_instance(InstanceId(3)).unwrap();
+    let rays: Vec<SceneRay> = (0..400)
+        .map(|k| {
+            let a = k as f32 * 0.37;
+            let origin = Vec3::new(8.0 * a.cos(), 8.0 * a.sin(), 2.0 * (a * 0.3).sin());
+            let target = Vec3::new(4.0 * (a * 1.7).sin(), 2.0 * (a * 0.9).cos(), 0.0);
+            SceneRay::new(Ray::new(origin, target - origin))
+        })
+        .collect();
+    for step in 1..4 {
+        let s = step as f32;
+        let positions: Vec<Vec3> = rest
+            .positions()
+            .iter()
+            .map(|p| {
+                let twist = glam::Quat::from_rotation_z(0.2 * s * p.z);
+                twist * (*p * (1.0 + 0.15 * s)) + Vec3::Z * 0.1 * s * p.x
+            })
+            .collect();
+        scene.set_mesh_positions(moving, positions.clone()).unwrap();
+        let mut fresh = Scene::new();
+        fresh.add_mesh(icosphere(Vec3::new(0.0, 4.0, 0.0), 1.0, 1));
+        let moved = fresh.add_mesh(TriangleMesh::new(positions, rest.indices().to_vec()).unwrap());
+        fresh
+            .add_instance(MeshId(0), InstanceTransform::IDENTITY, u32::MAX)
+            .unwrap();
+        for placement in placements {
+            let transform = InstanceTransform::new(placement).unwrap();
+            fresh.add_instance(moved, transform, u32::MAX).unwrap();
+        }
+        fresh.remove_instance(InstanceId(3)).unwrap();
+        fresh.build();
+        let expected = fresh.intersect_batch(&rays);
+        assert!(expected.iter().filter(|h| h.is_some()).count() > 100);
+        let agree = |scene: &Scene, when: &str| {
+            let ours = scene.intersect_batch(&rays);
+            for (k, (a, b)) in ours.iter().zip(&expected).enumerate() {
+                assert_eq!(a, b, "step {step}, {when} the update, ray {k}");
+            }
+            assert_eq!(scene.occluded_batch(&rays), fresh.occluded_batch(&rays));
+        };
+        agree(&scene, "before");
+        scene.update();
+        scene.validate().unwrap();
+        agree(&scene, "after");
+    }
+    let count = rest.positions().len();
+    assert_eq!(
+        scene.set_mesh_positions(moving, vec![Vec3::ZERO; count - 1]),
+        Err(SceneError::PositionCount {
+            mesh: moving,
+            expected: count,
+            given: count - 1
+        })
+    );
+    let mut bad = rest.positions().to_vec();
+    bad[5].y = f32::NAN;
+    let error = scene.set_mesh_positions(moving, bad).unwrap_err();
+    assert_eq!(
+        error,
+        SceneError::InvalidPosition {
+            mesh: moving,
+            vertex: 5
+        }
+    );
+    assert!(error.to_string().starts_with("positions: vertex 5"));
+    assert!(matches!(
+        scene.set_mesh_positions(MeshId(9), Vec::new()),
+        Err(SceneError::UnknownMesh { .. })
+    ));
+}

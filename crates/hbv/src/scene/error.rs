@@ -35,6 +35,15 @@ pub enum SceneError {
     /// An instance id that was removed ([`Scene::remove_instance`](super::Scene::remove_instance));
     /// it stays a hole and is never handed out again.
     RemovedInstance { instance: InstanceId },
+    /// `set_mesh_positions` was given `given` positions for a mesh of `expected` vertices.
+    PositionCount {
+        mesh: MeshId,
+        expected: usize,
+        given: usize,
+    },
+    /// `set_mesh_positions` was given a coordinate that is not finite or beyond
+    /// `±MAX_COORDINATE` ([`crate::mesh::MAX_COORDINATE`]) at `vertex`.
+    InvalidPosition { mesh: MeshId, vertex: usize },
 }
 
 impl fmt::Display for SceneError {
@@ -69,6 +78,20 @@ impl fmt::Display for SceneError {
                 f,
                 "instance: id {} does not exist; the scene has handed out {instances} instance id(s)",
                 instance.0
+            ),
+            SceneError::PositionCount {
+                mesh,
+                expected,
+                given,
+            } => write!(
+                f,
+                "positions: {given} given for mesh {}, which has {expected} vertices",
+                mesh.0
+            ),
+            SceneError::InvalidPosition { mesh, vertex } => write!(
+                f,
+                "positions: vertex {vertex} (mesh {}) is not finite or beyond ±f32::MAX / 2",
+                mesh.0
             ),
             SceneError::RemovedInstance { instance } => write!(
                 f,

@@ -15,16 +15,16 @@
 //! of a rebuild whatever changed, and when every instance moves a little the refitted tree is
 //! as good as a rebuilt one; the cost test says when it is not. Measured with
 //! `cargo run --release -p hbv --example scene_update` (10,000 instances of a 69,696-triangle
-//! torus on a grid; two runs on 2 shared cores): a refit takes 0.15 to 0.27 ms and a rebuild
-//! 5 to 14 ms, whatever fraction moved. Moving 1 %, 10 % or 100 % of the instances by up to
-//! half a torus width leaves the refitted cost at 1.000, 1.002, 1.013 times the rebuilt
-//! tree's, and by up to a grid cell at 1.002, 1.041, 1.275. Random closest-hit rays (50,000,
-//! one thread) trace on refits of cost up to 1.04 within the timers' noise of the rebuilt tree
-//! (which is up to a third on that machine); at 1.275 they were 9 % and 21 % slower in the two
-//! runs, at 1.40 30 % and 53 %, at 3.2 2.5 times slower, and instances moved anywhere in the
-//! field make the cost 7 (1 % of them) to 250 (all). So 1.25: a refit is kept where it traces
-//! about as fast as a rebuild, and a rebuild, which costs as much as tracing some ten thousand
-//! rays, is paid where it wins back more.
+//! torus on a grid, 2 cores shared with other work): a refit takes 0.18 to 0.29 ms and a
+//! rebuild 5 to 8 ms, whatever fraction moved. Moving 1 %, 10 % or 100 % of the instances by
+//! up to half a torus width leaves the refitted cost at 1.000, 1.002, 1.013 times the rebuilt
+//! tree's, and by up to a grid cell at 1.002, 1.041, 1.275. 50,000 random closest-hit rays
+//! (one thread) trace as fast on refits of cost up to 1.04 as on the rebuilt tree (0.77 to
+//! 0.84 µs a ray on both); at 1.275 they take 0.99 to 1.00 µs against 0.80 to 0.82 (about a
+//! quarter slower), at 1.40 a quarter to a third slower, at 3.2 2.5 times slower; instances
+//! moved anywhere in the field make the cost 7 (1 % of them) to 250 (all). So 1.25: a refit is
+//! kept where it traces as fast as a rebuild, and a rebuild, which costs as much as tracing
+//! some seven thousand rays, is paid where the refit would lose a fifth or more on every ray.
 //!
 //! Between a change and the update, queries still answer the scene as it is: a moved or added
 //! instance is tested in turn, its leaf (whose box may be stale) skipped; a removed one is
@@ -74,6 +74,13 @@ impl Scene {
         transform: InstanceTransform,
     ) -> Result<(), SceneError> {
         let index = self.live_index(instance)?;
+        self.place_instance(index, transform);
+        Ok(())
+    }
+
+    /// Places live instance `index` by `transform` over its mesh's current box, and leaves it
+    /// to be tested in turn until the next build or update.
+    pub(super) fn place_instance(&mut self, index: usize, transform: InstanceTransform) {
         let old = self.instances[index];
         let mesh_box = self.meshes[old.mesh as usize].bounds;
         let moved = Instance {
@@ -85,7 +92,6 @@ impl Scene {
             self.pending.push(index as u32);
         }
         self.widen_box_growth(&moved);
-        Ok(())
     }
 
     /// Sets the mask of instance `instance`: rays see it only if their mask shares a bit with

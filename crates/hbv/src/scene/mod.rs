@@ -93,6 +93,7 @@ mod brute_force;
 mod error;
 mod instance;
 mod live;
+mod mesh_motion;
 mod scene_hit;
 mod structure;
 mod top_level;
@@ -108,6 +109,7 @@ pub use transform::InstanceTransform;
 use rayon::prelude::*;
 
 use crate::bvh::layout::AnyLayout;
+use crate::bvh::BuildTree;
 use crate::geometry::directed_rounding::f32_above;
 use crate::geometry::{Aabb, PreparedRay, Ray};
 use crate::mesh::{MeshError, TriangleMesh};
@@ -132,6 +134,9 @@ struct SceneMesh {
     /// `mesh.bounds()`, kept for placing and moving its instances.
     bounds: Aabb,
     layout: AnyLayout,
+    /// The tree `layout` was laid out from, kept once the mesh's vertices have moved
+    /// ([`Scene::set_mesh_positions`]) for refitting it the next time.
+    tree: Option<BuildTree>,
 }
 
 /// Meshes, their instances and the top-level BVH over the instances (module notes).
@@ -186,6 +191,7 @@ impl Scene {
             mesh,
             bounds,
             layout,
+            tree: None,
         });
         MeshId(self.meshes.len() as u32 - 1)
     }
