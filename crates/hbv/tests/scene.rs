@@ -8,7 +8,7 @@ use hbv::geometry::Ray;
 use hbv::mesh::procedural::{ground_plane, icosphere, torus};
 use hbv::scene::{
     FlattenedScene, InstanceId, InstanceTransform, MeshId, Scene, SceneError, SceneHit, SceneRay,
-    SceneStructure,
+    SceneStructure, TopLevelUpdate,
 };
 use hbv::TriangleMesh;
 use proptest::prelude::*;
@@ -144,7 +144,10 @@ fn rays(spec: &SceneSpec, scene: &Scene, flat: &FlattenedScene) -> Vec<SceneRay>
         .map(|(k, &(origin, dir, mask, kind))| {
             let origin = origin + far;
             let instance = InstanceId((k % scene.instance_count()) as u32);
-            let instance_box = scene.instance_bounds(instance).unwrap();
+            // A removed instance (live scenes) has no box: aim at the whole scene's instead.
+            let instance_box = scene
+                .instance_bounds(instance)
+                .unwrap_or_else(|| scene.bounds());
             // A point near a face chosen by the seeds: most such rays hit something.
             let face =
                 flat.mesh.indices()[(kind as usize * 104_729 + k * 7) % flat.mesh.indices().len()];
@@ -571,4 +574,353 @@ fn a_scene_of_one_identity_instance_answers_as_its_mesh() {
             theirs.map(|h| (h.t, h.prim, h.u, h.v))
         );
     }
+}
+
+/// One step of a live scene's life.
+#[derive(Clone, Debug)]
+enum LiveOp {
+    Add(InstanceSpec),
+    /// Moves instance `pick % count` anywhere.
+    Move(usize, InstanceSpec),
+    /// Moves instance `pick % count` by a small step.
+    Nudge(usize, DVec3),
+    SetMask(usize, u32),
+    Remove(usize),
+    Update,
+    Build,
+}
+
+fn live_op() -> impl Strategy<Value = LiveOp> {
+    prop_oneof![
+        2 => instance_spec().prop_map(LiveOp::Add),
+        2 => (any::<usize>(), instance_spec()).prop_map(|(k, s)| LiveOp::Move(k, s)),
+        3 => (any::<usize>(), (-0.3f64..0.3, -0.3f64..0.3, -0.3f64..0.3))
+            .prop_map(|(k, (x, y, z))| LiveOp::Nudge(k, DVec3::new(x, y, z))),
+        2 => (any::<usize>(), instance_mask()).prop_map(|(k, m)| LiveOp::SetMask(k, m)),
+        2 => any::<usize>().prop_map(LiveOp::Remove),
+        3 => Just(LiveOp::Update),
+        1 => Just(LiveOp::Build),
+    ]
+}
+
+/// Applies `op` to the scene and to `model` (each instance's spec, `None` once removed),
+/// checking that ids are refused or accepted as the model says.
+fn apply_live_op(
+    scene: &mut Scene,
+    model: &mut Vec<Option<InstanceSpec>>,
+    op: &LiveOp,
+    far: DVec3,
+) {
+    let live = model.iter().flatten().count();
+    let pick = |k: usize| k % model.len();
+    let expect_refusal = |result: Result<(), SceneError>, k: usize| {
+        assert_eq!(
+            result,
+            Err(SceneError::RemovedInstance {
+                instance: InstanceId(k as u32)
+            })
+        );
+    };
+    match op {
+        LiveOp::Add(spec) => {
+            let transform = InstanceTransform::new(spec.affine(far)).unwrap();
+            let id = scene
+                .add_instance(MeshId(spec.mesh as u32), transform, spec.mask)
+                .unwrap();
+            assert_eq!(id.0 as usize, model.len(), "ids are handed out in order");
+            model.push(Some(spec.clone()));
+        }
+        LiveOp::Move(k, new) => {
+            let k = pick(*k);
+            let transform = InstanceTransform::new(new.affine(far)).unwrap();
+            let result = scene.set_transform(InstanceId(k as u32), transform);
+            match &mut model[k] {
+                Some(spec) => {
+                    result.unwrap();
+                    *spec = InstanceSpec {
+                        mesh: spec.mesh,
+                        mask: spec.mask,
+                        ..new.clone()
+                    };
+                }
+                None => expect_refusal(result, k),
+            }
+        }
+        LiveOp::Nudge(k, step) => {
+            let k = pick(*k);
+            match &mut model[k] {
+                Some(spec) => {
+                    spec.translation += *step;
+                    let transform = InstanceTransform::new(spec.affine(far)).unwrap();
+                    scene
+                        .set_transform(InstanceId(k as u32), transform)
+                        .unwrap();
+                }
+                None => expect_refusal(
+                    scene.set_transform(InstanceId(k as u32), InstanceTransform::IDENTITY),
+                    k,
+                ),
+            }
+        }
+        LiveOp::SetMask(k, mask) => {
+            let k = pick(*k);
+            let result = scene.set_mask(InstanceId(k as u32), *mask);
+            match &mut model[k] {
+                Some(spec) => {
+                    result.unwrap();
+                    spec.mask = *mask;
+                }
+                None => expect_refusal(result, k),
+            }
+        }
+        LiveOp::Remove(k) => {
+            let k = pick(*k);
+            // The checks aim rays at faces of the scene: keep one instance.
+            if live == 1 && model[k].is_some() {
+                return;
+            }
+            let result = scene.remove_instance(InstanceId(k as u32));
+            match model[k].take() {
+                Some(_) => result.unwrap(),
+                None => expect_refusal(result, k),
+            }
+            assert_eq!(scene.instance_bounds(InstanceId(k as u32)), None);
+        }
+        LiveOp::Update => {
+            scene.update();
+        }
+        LiveOp::Build => scene.build(),
+    }
+    assert_eq!(scene.instance_count(), model.len());
+    assert_eq!(scene.live_instance_count(), model.iter().flatten().count());
+    scene.validate().unwrap();
+}
+
+proptest! {
+    #![proptest_config(common::cases(32))]
+
+    /// Random sequences of adds, moves, mask changes, removals, updates and builds: after every
+    /// step the top level's invariants hold and the scene answers as the brute force over the
+    /// flattened live instances (removed ones holes), before and after each update.
+    #[test]
+    fn live_scenes_answer_as_their_flattened_brute_force(
+        start in scene_spec(),
+        ops in prop::collection::vec(live_op(), 1..24),
+    ) {
+        let (mut scene, _) = make_scene(&start, false);
+        let mut model: Vec<Option<InstanceSpec>> =
+            start.instances.iter().cloned().map(Some).collect();
+        for (step, op) in ops.iter().enumerate() {
+            apply_live_op(&mut scene, &mut model, op, start.far);
+            // The brute force's spec: removed instances keep their last spec, which no answer
+            // consults (they are holes of no faces in the flattened scene).
+            let mut last = start.instances.clone();
+            last.extend(model.iter().skip(last.len()).map(|s| s.clone().unwrap_or_else(|| start.instances[0].clone())));
+            let instances = model
+                .iter()
+                .zip(last)
+                .map(|(now, before)| now.clone().unwrap_or(before))
+                .collect();
+            let spec = SceneSpec { instances, far: start.far, rays: start.rays.clone() };
+            let flat = scene.flattened().unwrap();
+            let tally = check_scene(&spec, &scene, &flat);
+            let limit = if spec.far == DVec3::ZERO { 1 } else { tally.rays / 8 };
+            prop_assert!(tally.excused <= limit, "step {step} {op:?}: {tally:?}");
+        }
+    }
+}
+
+#[test]
+fn a_moved_instance_is_found_where_it_is_before_the_update() {
+    let mut scene = Scene::new();
+    let sphere = scene.add_mesh(icosphere(Vec3::ZERO, 1.0, 2));
+    let at = |x: f64| InstanceTransform::from_translation(DVec3::new(x, 0.0, 0.0)).unwrap();
+    let ids: Vec<InstanceId> = (0..40)
+        .map(|k| scene.add_instance(sphere, at(4.0 * k as f64), 1).unwrap())
+        .collect();
+    scene.build();
+    let down = |x: f32| SceneRay::new(Ray::new(Vec3::new(x, 0.0, 5.0), -Vec3::Z));
+    // Instance 3 leaves x = 12 for x = -20: its stale box in the tree must not answer.
+    scene.set_transform(ids[3], at(-20.0)).unwrap();
+    assert_eq!(scene.intersect(&down(12.0)), None);
+    assert_eq!(scene.intersect(&down(-20.0)).unwrap().instance, 3);
+    assert!(!scene.occluded(&down(12.0)) && scene.occluded(&down(-20.0)));
+    // A mask change takes effect at once.
+    scene.set_mask(ids[5], 2).unwrap();
+    assert_eq!(scene.intersect(&down(20.0).with_mask(1)), None);
+    assert_eq!(
+        scene.intersect(&down(20.0).with_mask(2)).unwrap().instance,
+        5
+    );
+    // One change in forty: a refit, after which the same answers hold.
+    assert_eq!(scene.update(), TopLevelUpdate::Refitted);
+    scene.validate().unwrap();
+    assert_eq!(scene.intersect(&down(12.0)), None);
+    assert_eq!(scene.intersect(&down(-20.0)).unwrap().instance, 3);
+    // Removal leaves a hole: the next instance keeps its id, a new one gets a new id.
+    scene.remove_instance(ids[4]).unwrap();
+    assert_eq!(scene.intersect(&down(16.0)), None);
+    let new = scene.add_instance(sphere, at(16.0), 1).unwrap();
+    assert_eq!(new, InstanceId(40));
+    assert_eq!(scene.intersect(&down(16.0)).unwrap().instance, 40);
+    assert_eq!(scene.update(), TopLevelUpdate::Refitted);
+    scene.validate().unwrap();
+    assert_eq!(scene.intersect(&down(16.0)).unwrap().instance, 40);
+    assert_eq!(scene.intersect(&down(24.0)).unwrap().instance, 6);
+    assert_eq!(scene.update(), TopLevelUpdate::Unchanged);
+    // Mirrored, the line keeps its tree: a refit is as good as a rebuild.
+    for (k, &id) in ids.iter().enumerate().filter(|&(k, _)| k != 4) {
+        scene.set_transform(id, at(-4.0 * k as f64)).unwrap();
+    }
+    assert_eq!(scene.update(), TopLevelUpdate::Refitted);
+    assert_eq!(scene.intersect(&down(-24.0)).unwrap().instance, 6);
+    // Shuffled along it, the old tree's boxes overlap everywhere: a rebuild.
+    for (k, &id) in ids.iter().enumerate().filter(|&(k, _)| k != 4) {
+        scene
+            .set_transform(id, at(4.0 * (k * 17 % 40) as f64))
+            .unwrap();
+    }
+    assert_eq!(scene.update(), TopLevelUpdate::Rebuilt);
+    scene.validate().unwrap();
+    assert_eq!(scene.intersect(&down(88.0)).unwrap().instance, 6);
+    let cost = scene.top_level_cost();
+    assert_eq!(cost.current, cost.at_build);
+}
+
+#[test]
+fn unknown_and_removed_instances_are_refused() {
+    let mut scene = Scene::new();
+    let sphere = scene.add_mesh(icosphere(Vec3::ZERO, 1.0, 0));
+    let id = scene
+        .add_instance(sphere, InstanceTransform::IDENTITY, 1)
+        .unwrap();
+    let unknown = InstanceId(7);
+    let error = scene.set_mask(unknown, 1).unwrap_err();
+    assert_eq!(
+        error,
+        SceneError::UnknownInstance {
+            instance: unknown,
+            instances: 1
+        }
+    );
+    assert_eq!(
+        error.to_string(),
+        "instance: id 7 does not exist; the scene has handed out 1 instance id(s)"
+    );
+    assert!(scene
+        .set_transform(unknown, InstanceTransform::IDENTITY)
+        .is_err());
+    assert!(scene.remove_instance(unknown).is_err());
+    scene.remove_instance(id).unwrap();
+    let error = scene.remove_instance(id).unwrap_err();
+    assert_eq!(error, SceneError::RemovedInstance { instance: id });
+    assert!(error.to_string().starts_with("instance: id 0 was removed"));
+    assert_eq!(scene.set_mask(id, 1), Err(error));
+    assert_eq!(
+        (scene.instance_count(), scene.live_instance_count()),
+        (1, 0)
+    );
+    scene.update();
+    scene.validate().unwrap();
+    let ray = SceneRay::new(Ray::new(Vec3::new(0.0, 0.0, 5.0), -Vec3::Z));
+    assert_eq!(scene.intersect(&ray), None);
+    assert_eq!(scene.flattened().unwrap().offsets, vec![0, 0]);
+}
+
+#[test]
+fn a_mesh_whose_vertices_move_answers_as_one_built_at_its_new_place() {
+    // A torus that swells and twists, placed by three instances (one of them removed): after
+    // each move the scene answers as a scene built afresh from the moved mesh, before and
+    // after the update.
+    let rest = torus(Vec3::ZERO, 1.0, 0.35, 24, 12);
+    let placements = [
+        DAffine3::IDENTITY,
+        DAffine3::from_scale_rotation_translation(
+            DVec3::new(1.5, -1.0, 0.5),
+            DQuat::from_rotation_x(0.7),
+            DVec3::new(4.0, 0.0, 0.0),
+        ),
+        DAffine3::from_translation(DVec3::new(-4.0, 1.0, 0.0)),
+    ];
+    let mut scene = Scene::new();
+    let sphere = scene.add_mesh(icosphere(Vec3::new(0.0, 4.0, 0.0), 1.0, 1));
+    let moving = scene.add_mesh(rest.clone());
+    scene
+        .add_instance(sphere, InstanceTransform::IDENTITY, u32::MAX)
+        .unwrap();
+    for placement in placements {
+        let transform = InstanceTransform::new(placement).unwrap();
+        scene.add_instance(moving, transform, u32::MAX).unwrap();
+    }
+    scene.build();
+    scene.remove_instance(InstanceId(3)).unwrap();
+    let rays: Vec<SceneRay> = (0..400)
+        .map(|k| {
+            let a = k as f32 * 0.37;
+            let origin = Vec3::new(8.0 * a.cos(), 8.0 * a.sin(), 2.0 * (a * 0.3).sin());
+            let target = Vec3::new(4.0 * (a * 1.7).sin(), 2.0 * (a * 0.9).cos(), 0.0);
+            SceneRay::new(Ray::new(origin, target - origin))
+        })
+        .collect();
+    for step in 1..4 {
+        let s = step as f32;
+        let positions: Vec<Vec3> = rest
+            .positions()
+            .iter()
+            .map(|p| {
+                let twist = glam::Quat::from_rotation_z(0.2 * s * p.z);
+                twist * (*p * (1.0 + 0.15 * s)) + Vec3::Z * 0.1 * s * p.x
+            })
+            .collect();
+        scene.set_mesh_positions(moving, positions.clone()).unwrap();
+        let mut fresh = Scene::new();
+        fresh.add_mesh(icosphere(Vec3::new(0.0, 4.0, 0.0), 1.0, 1));
+        let moved = fresh.add_mesh(TriangleMesh::new(positions, rest.indices().to_vec()).unwrap());
+        fresh
+            .add_instance(MeshId(0), InstanceTransform::IDENTITY, u32::MAX)
+            .unwrap();
+        for placement in placements {
+            let transform = InstanceTransform::new(placement).unwrap();
+            fresh.add_instance(moved, transform, u32::MAX).unwrap();
+        }
+        fresh.remove_instance(InstanceId(3)).unwrap();
+        fresh.build();
+        let expected = fresh.intersect_batch(&rays);
+        assert!(expected.iter().filter(|h| h.is_some()).count() > 100);
+        let agree = |scene: &Scene, when: &str| {
+            let ours = scene.intersect_batch(&rays);
+            for (k, (a, b)) in ours.iter().zip(&expected).enumerate() {
+                assert_eq!(a, b, "step {step}, {when} the update, ray {k}");
+            }
+            assert_eq!(scene.occluded_batch(&rays), fresh.occluded_batch(&rays));
+        };
+        agree(&scene, "before");
+        scene.update();
+        scene.validate().unwrap();
+        agree(&scene, "after");
+    }
+    let count = rest.positions().len();
+    assert_eq!(
+        scene.set_mesh_positions(moving, vec![Vec3::ZERO; count - 1]),
+        Err(SceneError::PositionCount {
+            mesh: moving,
+            expected: count,
+            given: count - 1
+        })
+    );
+    let mut bad = rest.positions().to_vec();
+    bad[5].y = f32::NAN;
+    let error = scene.set_mesh_positions(moving, bad).unwrap_err();
+    assert_eq!(
+        error,
+        SceneError::InvalidPosition {
+            mesh: moving,
+            vertex: 5
+        }
+    );
+    assert!(error.to_string().starts_with("positions: vertex 5"));
+    assert!(matches!(
+        scene.set_mesh_positions(MeshId(9), Vec::new()),
+        Err(SceneError::UnknownMesh { .. })
+    ));
 }

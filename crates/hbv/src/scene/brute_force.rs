@@ -21,14 +21,20 @@ pub struct FlattenedScene {
 }
 
 impl FlattenedScene {
-    /// Flattens `(mesh, transform, mask)` triples, in instance order. Fails when a mapped
-    /// vertex does not fit in f32.
+    /// Flattens `(mesh, transform, mask)` triples, in instance order; `None` is a removed
+    /// instance, a hole of no faces and mask 0, so that the others keep their ids. Fails when a
+    /// mapped vertex does not fit in f32.
     pub(crate) fn new<'a>(
-        instances: impl IntoIterator<Item = (&'a TriangleMesh, glam::DAffine3, u32)>,
+        instances: impl IntoIterator<Item = Option<(&'a TriangleMesh, glam::DAffine3, u32)>>,
     ) -> Result<Self, MeshError> {
         let (mut positions, mut indices) = (Vec::new(), Vec::new());
         let (mut offsets, mut masks) = (vec![0u32], Vec::new());
-        for (mesh, affine, mask) in instances {
+        for instance in instances {
+            let Some((mesh, affine, mask)) = instance else {
+                offsets.push(indices.len() as u32);
+                masks.push(0);
+                continue;
+            };
             let base = positions.len() as u32;
             positions.extend(
                 mesh.positions()
@@ -48,6 +54,7 @@ impl FlattenedScene {
 
     /// The instance whose faces include `face`, and the face's `prim` within it.
     pub fn instance_of(&self, face: u32) -> (u32, u32) {
+        // The last offset not above `face`: holes (equal offsets) are passed over.
         let instance = self.offsets.partition_point(|&o| o <= face) - 1;
         (instance as u32, face - self.offsets[instance])
     }

@@ -2,7 +2,7 @@
 
 use std::fmt;
 
-use super::MeshId;
+use super::{InstanceId, MeshId};
 
 /// Why a transform or an instance was refused. Never a panic: every check of user input in
 /// [`Scene`](super::Scene) and [`InstanceTransform`](super::InstanceTransform) answers with one
@@ -27,6 +27,23 @@ pub enum SceneError {
     },
     /// `add_instance` was given a mesh id the scene did not hand out.
     UnknownMesh { mesh: MeshId, meshes: usize },
+    /// An instance id the scene did not hand out (`instances` is how many it did).
+    UnknownInstance {
+        instance: InstanceId,
+        instances: usize,
+    },
+    /// An instance id that was removed ([`Scene::remove_instance`](super::Scene::remove_instance));
+    /// it stays a hole and is never handed out again.
+    RemovedInstance { instance: InstanceId },
+    /// `set_mesh_positions` was given `given` positions for a mesh of `expected` vertices.
+    PositionCount {
+        mesh: MeshId,
+        expected: usize,
+        given: usize,
+    },
+    /// `set_mesh_positions` was given a coordinate that is not finite or beyond
+    /// `±MAX_COORDINATE` ([`crate::mesh::MAX_COORDINATE`]) at `vertex`.
+    InvalidPosition { mesh: MeshId, vertex: usize },
 }
 
 impl fmt::Display for SceneError {
@@ -53,6 +70,33 @@ impl fmt::Display for SceneError {
                 f,
                 "mesh: id {} does not exist; the scene has {meshes} mesh(es)",
                 mesh.0
+            ),
+            SceneError::UnknownInstance {
+                instance,
+                instances,
+            } => write!(
+                f,
+                "instance: id {} does not exist; the scene has handed out {instances} instance id(s)",
+                instance.0
+            ),
+            SceneError::PositionCount {
+                mesh,
+                expected,
+                given,
+            } => write!(
+                f,
+                "positions: {given} given for mesh {}, which has {expected} vertices",
+                mesh.0
+            ),
+            SceneError::InvalidPosition { mesh, vertex } => write!(
+                f,
+                "positions: vertex {vertex} (mesh {}) is not finite or beyond ±f32::MAX / 2",
+                mesh.0
+            ),
+            SceneError::RemovedInstance { instance } => write!(
+                f,
+                "instance: id {} was removed; removed ids are never reused",
+                instance.0
             ),
         }
     }

@@ -4,7 +4,19 @@ use glam::{DVec3, Vec3};
 
 use super::InstanceTransform;
 use crate::geometry::directed_rounding::{f32_above, f32_below};
-use crate::geometry::{Aabb, Ray, Triangle};
+use crate::geometry::{Aabb, PreparedRay, Ray, Triangle};
+
+/// Where queries find an instance: through the top level, tested in turn, or nowhere.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum InstanceState {
+    /// Its leaf in the top level holds its current world box.
+    Indexed,
+    /// Added or moved since the last build or update: queries test it in turn, and skip the
+    /// leaf it may still have in the top level (whose box may be stale).
+    Pending,
+    /// Removed: a hole that is never hit; its id is never handed out again.
+    Removed,
+}
 
 /// One placement of a mesh of the scene.
 #[derive(Clone, Copy, Debug)]
@@ -13,18 +25,33 @@ pub(crate) struct Instance {
     pub mesh: u32,
     pub transform: InstanceTransform,
     pub mask: u32,
-    /// A box holding every world-space point of the instance's mesh (see [`world_box`]).
+    /// A box holding every world-space point of the instance's mesh (see [`world_box`]);
+    /// [`Aabb::EMPTY`] once removed.
     pub world_box: Aabb,
+    pub state: InstanceState,
 }
 
 impl Instance {
+    /// A new instance, [`InstanceState::Pending`] until the top level is built or updated.
     pub fn new(mesh: u32, transform: InstanceTransform, mask: u32, mesh_box: &Aabb) -> Self {
         Self {
             mesh,
             transform,
             mask,
             world_box: world_box(&transform, mesh_box),
+            state: InstanceState::Pending,
         }
+    }
+
+    /// What this instance asks of the top level's box growth (module notes of `scene`): its
+    /// `κ` and its `|b| + S`, or `None` when nothing can hit it (removed, or an empty mesh).
+    pub fn box_growth_terms(&self) -> Option<(f64, f64)> {
+        if self.world_box.is_empty() {
+            return None;
+        }
+        let size = f64::from(PreparedRay::scene_size(&self.world_box));
+        let offset = self.transform.affine().translation.abs().max_element() + size;
+        Some((self.transform.conditioning(), offset))
     }
 
     /// The world ray `o + t d` in the instance's space: `o' = A^-1 (o - b)`, `d' = A^-1 d`,

@@ -76,11 +76,25 @@
 //!
 //! **Ties** are decided as on the flattened scene: at equal `t`, the smaller instance, then the
 //! smaller `prim` ([`SceneHit::is_closer`]), whatever order the instances are visited in.
+//!
+//! # Live scenes
+//!
+//! Instances move ([`Scene::set_transform`]), change mask ([`Scene::set_mask`]) and go
+//! ([`Scene::remove_instance`]); [`Scene::update`] then brings the top level up to date by a
+//! refit or a rebuild (the rule is in `scene/live.rs`, [`TopLevelUpdate`]). Queries answer the
+//! scene as it is now at every moment: instances added or moved since the last build or update
+//! are tested in turn, their stale leaves skipped. **Ids are stable**: an instance's id is the
+//! order of its [`Scene::add_instance`] call for as long as the scene lives; a removed instance
+//! leaves a hole that is never hit and whose id is never handed out again (later calls with it
+//! are refused with [`SceneError::RemovedInstance`]), so the `instance` of every answer keeps
+//! meaning what it meant.
 
 mod brute_force;
 mod error;
 mod gltf;
 mod instance;
+mod live;
+mod mesh_motion;
 mod scene_hit;
 mod structure;
 mod top_level;
@@ -88,6 +102,7 @@ mod transform;
 
 pub use brute_force::FlattenedScene;
 pub use error::SceneError;
+pub use live::{TopLevelCost, TopLevelUpdate};
 pub use scene_hit::{SceneHit, SceneRay};
 pub use structure::SceneStructure;
 pub use transform::InstanceTransform;
@@ -95,20 +110,21 @@ pub use transform::InstanceTransform;
 use rayon::prelude::*;
 
 use crate::bvh::layout::AnyLayout;
+use crate::bvh::BuildTree;
 use crate::geometry::directed_rounding::f32_above;
 use crate::geometry::{Aabb, PreparedRay, Ray};
 use crate::mesh::{MeshError, TriangleMesh};
 use crate::query::Accelerator;
 use glam::Vec3;
-use instance::Instance;
+use instance::{Instance, InstanceState};
 use top_level::TopLevel;
 
 /// A mesh's id in its scene: the order of [`Scene::add_mesh`] calls, from 0.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct MeshId(pub u32);
 
-/// An instance's id in its scene: the order of [`Scene::add_instance`] calls, from 0. Hits
-/// report it as [`SceneHit::instance`].
+/// An instance's id in its scene: the order of [`Scene::add_instance`] calls, from 0, never
+/// reused after [`Scene::remove_instance`]. Hits report it as [`SceneHit::instance`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
 pub struct InstanceId(pub u32);
 
@@ -116,23 +132,32 @@ pub struct InstanceId(pub u32);
 #[derive(Clone, Debug)]
 struct SceneMesh {
     mesh: TriangleMesh,
+    /// `mesh.bounds()`, kept for placing and moving its instances.
+    bounds: Aabb,
     layout: AnyLayout,
+    /// The tree `layout` was laid out from, kept once the mesh's vertices have moved
+    /// ([`Scene::set_mesh_positions`]) for refitting it the next time.
+    tree: Option<BuildTree>,
 }
 
 /// Meshes, their instances and the top-level BVH over the instances (module notes).
 ///
-/// Instances added since the last [`Scene::build`] are answered too, each tested in turn, until
-/// the next build puts them into the top level.
+/// Instances added or moved since the last [`Scene::build`] or [`Scene::update`] are answered
+/// too, each tested in turn, until the next build or update puts them into the top level.
 #[derive(Clone, Debug, Default)]
 pub struct Scene {
     structure: SceneStructure,
     meshes: Vec<SceneMesh>,
     instances: Vec<Instance>,
     top_level: TopLevel,
-    /// `instances[..indexed]` are in `top_level`.
-    indexed: usize,
-    /// The largest `κ` of any instance, and the largest `|b| + S`: what the top level's box
-    /// growth of a ray is computed from (module notes).
+    /// The instances in [`InstanceState::Pending`], in the order they became so: tested in turn.
+    pending: Vec<u32>,
+    /// Removals since the last build or update: their empty leaves are still in `top_level`.
+    removed_since_update: usize,
+    /// The largest `κ` of any instance the top level may lead to, and the largest `|b| + S`:
+    /// what the top level's box growth of a ray is computed from (module notes). They only grow
+    /// as instances are added or moved, and are recomputed over the live instances when the
+    /// top level is built or updated, so they always cover every instance a walk can visit.
     largest_conditioning: f64,
     largest_offset: f64,
 }
@@ -162,7 +187,13 @@ impl Scene {
         let s = &self.structure;
         let tree = s.builder.build(&mesh, &s.builder_options);
         let layout = s.layout.lay_out(&tree, &mesh, &s.layout_options);
-        self.meshes.push(SceneMesh { mesh, layout });
+        let bounds = mesh.bounds();
+        self.meshes.push(SceneMesh {
+            mesh,
+            bounds,
+            layout,
+            tree: None,
+        });
         MeshId(self.meshes.len() as u32 - 1)
     }
 
@@ -180,30 +211,35 @@ impl Scene {
                 meshes: self.meshes.len(),
             });
         };
-        let instance = Instance::new(mesh.0, transform, mask, &scene_mesh.mesh.bounds());
-        if !instance.world_box.is_empty() {
-            let size = f64::from(PreparedRay::scene_size(&instance.world_box));
-            let offset = transform.affine().translation.abs().max_element() + size;
-            self.largest_offset = self.largest_offset.max(offset);
-            self.largest_conditioning = self.largest_conditioning.max(transform.conditioning());
-        }
+        let instance = Instance::new(mesh.0, transform, mask, &scene_mesh.bounds);
+        self.widen_box_growth(&instance);
+        self.pending.push(self.instances.len() as u32);
         self.instances.push(instance);
         Ok(InstanceId(self.instances.len() as u32 - 1))
     }
 
-    /// Builds the top-level BVH over the world boxes of every instance (binned SAH, binary
+    /// Builds the top-level BVH over the world boxes of every live instance (binned SAH, binary
     /// nodes).
     pub fn build(&mut self) {
         self.top_level = TopLevel::build(self.instances.iter().map(|i| i.world_box));
-        self.indexed = self.instances.len();
+        self.index_pending();
     }
 
     pub fn mesh_count(&self) -> usize {
         self.meshes.len()
     }
 
+    /// The number of instance ids handed out, removed ones included: ids are `0..instance_count`.
     pub fn instance_count(&self) -> usize {
         self.instances.len()
+    }
+
+    /// The number of instances not removed.
+    pub fn live_instance_count(&self) -> usize {
+        self.instances
+            .iter()
+            .filter(|i| i.state != InstanceState::Removed)
+            .count()
     }
 
     /// The mesh of id `mesh`, as added.
@@ -212,9 +248,12 @@ impl Scene {
     }
 
     /// The world box of instance `instance` (see the module notes): `None` for an id the scene
-    /// did not hand out, [`Aabb::EMPTY`] for an instance of an empty mesh.
+    /// did not hand out or that was removed, [`Aabb::EMPTY`] for an instance of an empty mesh.
     pub fn instance_bounds(&self, instance: InstanceId) -> Option<Aabb> {
-        self.instances.get(instance.0 as usize).map(|i| i.world_box)
+        self.instances
+            .get(instance.0 as usize)
+            .filter(|i| i.state != InstanceState::Removed)
+            .map(|i| i.world_box)
     }
 
     /// A box holding every world-space point of every instance.
@@ -224,15 +263,17 @@ impl Scene {
             .fold(Aabb::EMPTY, |b, i| b.union(&i.world_box))
     }
 
-    /// The scene as one world-space mesh, instance by instance (see [`FlattenedScene`]); fails
-    /// when a mapped vertex does not fit in f32.
+    /// The scene as one world-space mesh, instance by instance (see [`FlattenedScene`]), a
+    /// removed instance a hole of no faces; fails when a mapped vertex does not fit in f32.
     pub fn flattened(&self) -> Result<FlattenedScene, MeshError> {
         FlattenedScene::new(self.instances.iter().map(|i| {
-            (
-                &self.meshes[i.mesh as usize].mesh,
-                i.transform.affine(),
-                i.mask,
-            )
+            (i.state != InstanceState::Removed).then(|| {
+                (
+                    &self.meshes[i.mesh as usize].mesh,
+                    i.transform.affine(),
+                    i.mask,
+                )
+            })
         }))
     }
 
@@ -244,12 +285,14 @@ impl Scene {
         }
         let mut best: BestHit = None;
         let mut prepared = PreparedRay::new(&ray.ray);
-        for id in self.indexed..self.instances.len() {
-            self.closest_in(id as u32, ray, &mut prepared, &mut best);
+        for &id in &self.pending {
+            self.closest_in(id, ray, &mut prepared, &mut best);
         }
         self.top_level
             .walk(&mut prepared, self.box_pad(&ray.ray), |id, prepared| {
-                self.closest_in(id, ray, prepared, &mut best);
+                if self.instances[id as usize].state == InstanceState::Indexed {
+                    self.closest_in(id, ray, prepared, &mut best);
+                }
                 false
             });
         best.map(|hit| {
@@ -276,14 +319,15 @@ impl Scene {
                     .layout
                     .occluded(&instance.carry(&ray.ray))
         };
-        if (self.indexed..self.instances.len()).any(|id| hit_in(id as u32)) {
+        if self.pending.iter().any(|&id| hit_in(id)) {
             return true;
         }
         let mut occluded = false;
         let mut prepared = PreparedRay::new(&ray.ray);
         self.top_level
             .walk(&mut prepared, self.box_pad(&ray.ray), |id, _| {
-                occluded = hit_in(id);
+                occluded =
+                    self.instances[id as usize].state == InstanceState::Indexed && hit_in(id);
                 occluded
             });
         occluded
@@ -329,6 +373,29 @@ impl Scene {
                 // Computed once, for the final hit (`Scene::intersect`).
                 normal: Vec3::ZERO,
             });
+        }
+    }
+
+    /// Makes the box growth cover `instance` too (see `largest_conditioning`).
+    fn widen_box_growth(&mut self, instance: &Instance) {
+        if let Some((conditioning, offset)) = instance.box_growth_terms() {
+            self.largest_conditioning = self.largest_conditioning.max(conditioning);
+            self.largest_offset = self.largest_offset.max(offset);
+        }
+    }
+
+    /// After the top level was built or updated to hold every live instance's current box:
+    /// nothing is pending any more, and the box growth is that of the live instances alone.
+    fn index_pending(&mut self) {
+        for &id in &self.pending {
+            self.instances[id as usize].state = InstanceState::Indexed;
+        }
+        self.pending.clear();
+        self.removed_since_update = 0;
+        (self.largest_conditioning, self.largest_offset) = (0.0, 0.0);
+        for i in 0..self.instances.len() {
+            let instance = self.instances[i];
+            self.widen_box_growth(&instance);
         }
     }
 

@@ -4,6 +4,12 @@
 //! The mesh builders (`bvh/build/`) build over a mesh's triangles; the top level builds over
 //! boxes, one per instance, so it has its own small builder here. Its nodes are binary; wide
 //! nodes for the top level are a later step.
+//!
+//! A live scene changes the tree in place between builds (`scene/live.rs` decides when):
+//! [`TopLevel::refit`] recomputes every box bottom-up, keeping the topology, and
+//! [`TopLevel::insert`] hangs a new leaf where its box grows the tree least. Both keep the one
+//! rule the layout needs: a node's children come after it in `nodes`, so one backwards sweep
+//! sees every child before its parent.
 
 use glam::Vec3;
 
@@ -19,10 +25,16 @@ struct TopNode {
     is_leaf: bool,
 }
 
-/// The top-level tree: one leaf per instance with a nonempty world box.
+/// The top-level tree: one leaf per instance with a nonempty world box (when built; removed
+/// instances keep an empty leaf until the next build).
 #[derive(Clone, Debug, Default)]
 pub(crate) struct TopLevel {
     nodes: Vec<TopNode>,
+    /// [`TopLevel::cost`] when built: what refits are measured against.
+    built_cost: f32,
+    /// Instances `0..covered` have their leaf (those whose box was not empty): the ones the
+    /// tree was built over, and those inserted since.
+    covered: u32,
 }
 
 /// Centroid bins per axis of the binned SAH (Wald 2007, "On fast construction of SAH-based
@@ -40,9 +52,9 @@ struct Item {
 impl TopLevel {
     /// Builds over `boxes[i]`, the world box of instance `i`; empty boxes are left out (nothing
     /// can hit them).
-    pub fn build(boxes: impl IntoIterator<Item = Aabb>) -> Self {
+    pub fn build(boxes: impl ExactSizeIterator<Item = Aabb>) -> Self {
+        let covered = boxes.len() as u32;
         let mut items: Vec<Item> = boxes
-            .into_iter()
             .enumerate()
             .filter(|(_, b)| !b.is_empty())
             .map(|(id, bounds)| Item {
@@ -53,6 +65,8 @@ impl TopLevel {
             .collect();
         let mut top = TopLevel {
             nodes: Vec::with_capacity(2 * items.len()),
+            built_cost: 0.0,
+            covered,
         };
         if !items.is_empty() {
             top.nodes.push(TopNode {
@@ -62,7 +76,137 @@ impl TopLevel {
             });
             top.build_node(0, &mut items);
         }
+        top.built_cost = top.cost();
         top
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.nodes.is_empty()
+    }
+
+    /// Instances `0..instances_covered()` have their leaf if their box is not empty; later
+    /// ones must be inserted.
+    pub fn instances_covered(&self) -> u32 {
+        self.covered
+    }
+
+    /// Records that instances `0..covered` now have their leaves (after inserting the new ones).
+    pub fn cover_instances(&mut self, covered: u32) {
+        self.covered = covered;
+    }
+
+    /// Recomputes every box bottom-up from `leaf_box(instance)`, keeping the topology (an empty
+    /// box for a removed instance). Children follow their parent in `nodes`, so a backwards
+    /// sweep finishes each child before its parent: `O(nodes)`, no stack. Returns the number of
+    /// leaves left with an empty box (holes).
+    pub fn refit(&mut self, leaf_box: impl Fn(u32) -> Aabb) -> usize {
+        let mut holes = 0;
+        for index in (0..self.nodes.len()).rev() {
+            let node = self.nodes[index];
+            self.nodes[index].bounds = if node.is_leaf {
+                let bounds = leaf_box(node.first);
+                holes += usize::from(bounds.is_empty());
+                bounds
+            } else {
+                let first = node.first as usize;
+                self.nodes[first]
+                    .bounds
+                    .union(&self.nodes[first + 1].bounds)
+            };
+        }
+        holes
+    }
+
+    /// The number of leaves: a binary tree of `n` nodes has `(n + 1) / 2`.
+    pub fn leaf_count(&self) -> usize {
+        self.nodes.len().div_ceil(2)
+    }
+
+    /// Hangs a leaf for `instance` (world box `bounds`, not empty) into the tree: down from the
+    /// root, into the child whose surface area the box grows least (Goldsmith & Salmon 1987's
+    /// greedy descent), growing each box on the way; the leaf reached becomes an interior node
+    /// over itself and the new leaf, both appended, so children still follow their parent.
+    pub fn insert(&mut self, instance: u32, bounds: Aabb) {
+        let leaf = TopNode {
+            bounds,
+            first: instance,
+            is_leaf: true,
+        };
+        if self.nodes.is_empty() {
+            self.nodes.push(leaf);
+            return;
+        }
+        let mut index = 0;
+        while !self.nodes[index].is_leaf {
+            let node = &mut self.nodes[index];
+            node.bounds = node.bounds.union(&bounds);
+            let first = node.first as usize;
+            let growth =
+                |n: &TopNode| n.bounds.union(&bounds).surface_area() - n.bounds.surface_area();
+            index = if growth(&self.nodes[first]) <= growth(&self.nodes[first + 1]) {
+                first
+            } else {
+                first + 1
+            };
+        }
+        let old = self.nodes[index];
+        let first = self.nodes.len() as u32;
+        self.nodes.extend([old, leaf]);
+        self.nodes[index] = TopNode {
+            bounds: old.bounds.union(&bounds),
+            first,
+            is_leaf: false,
+        };
+    }
+
+    /// The SAH cost of the tree relative to its root, `Σ_n SA(n) / SA(root)` over every node:
+    /// the expected number of boxes a random ray through the root meets (Goldsmith & Salmon
+    /// 1987; MacDonald & Booth 1990). 0 for an empty or flat tree.
+    pub fn cost(&self) -> f32 {
+        let Some(root) = self.nodes.first() else {
+            return 0.0;
+        };
+        let root_area = root.bounds.surface_area();
+        if root_area <= 0.0 || root_area.is_nan() {
+            return 0.0;
+        }
+        self.nodes
+            .iter()
+            .map(|n| n.bounds.surface_area())
+            .sum::<f32>()
+            / root_area
+    }
+
+    /// [`TopLevel::cost`] as it was when the tree was built.
+    pub fn built_cost(&self) -> f32 {
+        self.built_cost
+    }
+
+    /// Every leaf's box and each node's box inside its parent's, and the leaves' instances:
+    /// `(instance, leaf box)` pairs, in node order, for the caller to check against the scene.
+    pub fn check_nesting(&self) -> Result<Vec<(u32, Aabb)>, String> {
+        let mut leaves = Vec::new();
+        for (index, node) in self.nodes.iter().enumerate() {
+            if node.is_leaf {
+                leaves.push((node.first, node.bounds));
+                continue;
+            }
+            let first = node.first as usize;
+            if first <= index || first + 1 >= self.nodes.len() {
+                return Err(format!(
+                    "node {index}: children at {first} do not follow it"
+                ));
+            }
+            for child in [first, first + 1] {
+                if !node.bounds.contains(&self.nodes[child].bounds) {
+                    return Err(format!(
+                        "node {index}: box {:?} does not hold child {child}'s {:?}",
+                        node.bounds, self.nodes[child].bounds
+                    ));
+                }
+            }
+        }
+        Ok(leaves)
     }
 
     /// Fills node `index` with `items`: a leaf for one item, else two children split where the
@@ -105,7 +249,8 @@ impl TopLevel {
         pad: f32,
         mut visit: impl FnMut(u32, &mut PreparedRay) -> bool,
     ) {
-        let Some(root) = self.nodes.first() else {
+        let Some(root) = self.nodes.first().filter(|root| !root.bounds.is_empty()) else {
+            // No nodes, or only removed instances' empty leaves.
             return;
         };
         let pad = Vec3::splat(pad);
@@ -234,5 +379,44 @@ mod tests {
         assert!(xs.windows(2).all(|w| w[0] < w[1]), "{xs:?}");
         let mut miss = PreparedRay::new(&Ray::new(Vec3::new(-1.0, 2.0, 0.0), Vec3::X));
         top.walk(&mut miss, 0.0, |_, _| panic!("no box is met"));
+    }
+
+    #[test]
+    fn inserted_and_refitted_leaves_stay_nested_and_found() {
+        let unit =
+            |x: f32, y: f32| Aabb::new(Vec3::new(x, y, -0.5), Vec3::new(x + 0.5, y + 0.5, 0.5));
+        let mut boxes: Vec<Aabb> = (0..20).map(|i| unit(i as f32, 0.0)).collect();
+        let mut top = TopLevel::build(boxes.iter().copied());
+        let built = top.cost();
+        assert_eq!(top.built_cost(), built);
+        for i in 20..30 {
+            boxes.push(unit(i as f32 - 25.0, 3.0));
+            top.insert(i, boxes[i as usize]);
+        }
+        top.cover_instances(30);
+        // Move a third of the boxes up by 3 and remove one: the refit follows.
+        for b in boxes.iter_mut().step_by(3) {
+            *b = Aabb::new(b.min + Vec3::Y * 3.0, b.max + Vec3::Y * 3.0);
+        }
+        boxes[7] = Aabb::EMPTY;
+        assert_eq!(top.refit(|id| boxes[id as usize]), 1);
+        assert_eq!(top.leaf_count(), 30);
+        let leaves = top.check_nesting().unwrap();
+        assert_eq!(leaves.len(), 30);
+        for (id, bounds) in leaves {
+            assert_eq!(bounds, boxes[id as usize]);
+        }
+        let mut ray = PreparedRay::new(&Ray::new(Vec3::new(-10.0, 3.25, 0.0), Vec3::X));
+        let mut seen = Vec::new();
+        top.walk(&mut ray, 0.0, |id, _| {
+            seen.push(id);
+            false
+        });
+        seen.sort();
+        let expected: Vec<u32> = (0..30)
+            .filter(|&i| !boxes[i as usize].is_empty() && boxes[i as usize].min.y == 3.0)
+            .collect();
+        assert_eq!(seen, expected);
+        assert!(top.cost() > built);
     }
 }
