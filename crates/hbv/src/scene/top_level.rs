@@ -13,6 +13,7 @@
 
 use glam::Vec3;
 
+use crate::bvh::layout::TraversalStack;
 use crate::geometry::{Aabb, PreparedRay};
 
 /// A node: its box and, for a leaf, the one instance it holds; an interior node's children are
@@ -259,7 +260,9 @@ impl TopLevel {
         let Some((root_near, _)) = grown(&root.bounds).intersect_interval(ray) else {
             return;
         };
-        let mut stack: Vec<(u32, f32)> = Vec::with_capacity(32);
+        // On the machine stack, not allocated per ray; a tree deep enough to need more than 64
+        // entries spills the rest to the heap.
+        let mut stack: TraversalStack<(u32, f32), 64> = TraversalStack::new();
         stack.push((0, root_near));
         while let Some((index, near)) = stack.pop() {
             // A nearer hit found since the push culls the node.
@@ -279,11 +282,13 @@ impl TopLevel {
             match (near_a, near_b) {
                 (Some((na, _)), Some((nb, _))) => {
                     // The farther child waits below the nearer one.
-                    if na <= nb {
-                        stack.extend([(b, nb), (a, na)]);
+                    let (near, far) = if na <= nb {
+                        ((a, na), (b, nb))
                     } else {
-                        stack.extend([(a, na), (b, nb)]);
-                    }
+                        ((b, nb), (a, na))
+                    };
+                    stack.push(far);
+                    stack.push(near);
                 }
                 (Some((na, _)), None) => stack.push((a, na)),
                 (None, Some((nb, _))) => stack.push((b, nb)),

@@ -24,4 +24,5 @@ pub use kind::{AnyLayout, LayoutKind, LayoutOptions};
 pub use ordered::OrderedLayout;
 pub use recursive::RecursiveLayout;
 pub use skip::SkipLayout;
+pub(crate) use stack::TraversalStack;
 pub use wide::{Wide4Layout, Wide8Layout, WideLayout};
