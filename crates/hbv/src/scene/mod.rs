@@ -89,7 +89,9 @@
 //! are refused with [`SceneError::RemovedInstance`]), so the `instance` of every answer keeps
 //! meaning what it meant.
 
+mod all_hits;
 mod brute_force;
+mod closest_point;
 mod error;
 mod gltf;
 mod instance;
@@ -101,6 +103,7 @@ mod top_level;
 mod transform;
 
 pub use brute_force::FlattenedScene;
+pub use closest_point::{SceneClosestPoint, SceneNearestPoints};
 pub use error::SceneError;
 pub use live::{TopLevelCost, TopLevelUpdate};
 pub use scene_hit::{SceneHit, SceneRay};

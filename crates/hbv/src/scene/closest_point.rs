@@ -1,0 +1,172 @@
+//! The nearest surface point of a scene to a query point, with the instance it lies on
+//! ([`Scene::closest_point`], [`SceneNearestPoints`]).
+//!
+//! Each instance is searched in its own space when its transform keeps distances in
+//! proportion (a similarity: `AᵀA = s² I`, rotations, mirrors and uniform scales), by its
+//! mesh's nearest-point search ([`ClosestPointTree`]) on the query point carried by `A^-1`; the
+//! point found is mapped back by `A` in f64, and the nearest in local space is the nearest in
+//! world space. Any other transform (a non-uniform scale, a shear) bends distances, so the
+//! local nearest point need not be the world one: such an instance is searched in world space,
+//! every triangle of its mesh mapped by `A` in f64 and decided in f64 (as
+//! [`closest_point_brute_force`](crate::proximity::closest_point_brute_force) does), a cost
+//! linear in its triangles.
+//!
+//! Instances are visited by a linear scan of the live ones, nearest world box first, stopping
+//! at the first box farther than the best distance so far; the top level is not walked.
+
+use glam::DVec3;
+
+use super::instance::{Instance, InstanceState};
+use super::{Scene, SceneRay};
+use crate::geometry::Aabb;
+use crate::proximity::{closest_point_on_triangle, ClosestPointTree, NearestPointSearch};
+
+/// The nearest surface point of a scene to a query point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SceneClosestPoint {
+    /// The nearest point in world space, `A ((1-u-v) p0 + u p1 + v p2) + b` in f64.
+    pub point: DVec3,
+    /// The world distance from the query point to `point`.
+    pub distance: f64,
+    /// The instance the point lies on; among instances at the same distance, the smallest.
+    pub instance: u32,
+    /// The triangle of the instance's mesh; among its triangles at the same distance, the
+    /// smallest.
+    pub prim: u32,
+    pub u: f64,
+    pub v: f64,
+}
+
+/// A scene's meshes made ready for nearest-point search: one [`ClosestPointTree`] per mesh,
+/// built when this is made (by the scene's builder), shared by every instance of the mesh.
+/// Make it once for many points; it answers the scene as it was when made.
+pub struct SceneNearestPoints<'a> {
+    scene: &'a Scene,
+    trees: Vec<ClosestPointTree>,
+}
+
+impl Scene {
+    /// Each mesh's search tree, for [`SceneNearestPoints::closest_point`] on many points.
+    pub fn nearest_points(&self) -> SceneNearestPoints<'_> {
+        let s = &self.structure;
+        let trees = self
+            .meshes
+            .iter()
+            .map(|m| ClosestPointTree::new(&s.builder.build(&m.mesh, &s.builder_options), &m.mesh))
+            .collect();
+        SceneNearestPoints { scene: self, trees }
+    }
+
+    /// The nearest surface point of every live instance whose mask is not zero to `p` (module
+    /// notes). Builds each mesh's search tree for this one point: for many points, make
+    /// [`Scene::nearest_points`] once.
+    pub fn closest_point(&self, p: DVec3) -> Option<SceneClosestPoint> {
+        self.nearest_points().closest_point(p)
+    }
+}
+
+impl SceneNearestPoints<'_> {
+    /// The nearest surface point to `p` of every live instance whose mask is not zero; ties to
+    /// the smaller instance, then the smaller `prim`. `None` for a point with a NaN or infinite
+    /// coordinate, or a scene with no triangle.
+    pub fn closest_point(&self, p: DVec3) -> Option<SceneClosestPoint> {
+        self.closest_point_with_mask(p, SceneRay::ALL)
+    }
+
+    /// [`SceneNearestPoints::closest_point`] among the instances whose mask shares a bit with
+    /// `mask`.
+    pub fn closest_point_with_mask(&self, p: DVec3, mask: u32) -> Option<SceneClosestPoint> {
+        if !p.is_finite() {
+            return None;
+        }
+        let scene = self.scene;
+        let mut order: Vec<(f64, u32)> = scene
+            .instances
+            .iter()
+            .enumerate()
+            .filter(|(_, i)| {
+                i.state != InstanceState::Removed && i.mask & mask != 0 && !i.world_box.is_empty()
+            })
+            .map(|(id, i)| (box_distance(&i.world_box, p), id as u32))
+            .collect();
+        order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut best: Option<SceneClosestPoint> = None;
+        for (near, id) in order {
+            // A box farther than the best can hold nothing nearer; one as far may hold a tie.
+            if best.is_some_and(|b| near > b.distance) {
+                break;
+            }
+            let Some(found) = self.closest_on(id, &scene.instances[id as usize], p) else {
+                continue;
+            };
+            let closer = best.is_none_or(|b| {
+                found.distance < b.distance
+                    || (found.distance == b.distance && (id, found.prim) < (b.instance, b.prim))
+            });
+            if closer {
+                best = Some(found);
+            }
+        }
+        best
+    }
+
+    /// The nearest point to `p` on instance `id`: in its space for a similarity, else in world
+    /// space triangle by triangle (module notes).
+    fn closest_on(&self, id: u32, instance: &Instance, p: DVec3) -> Option<SceneClosestPoint> {
+        let affine = instance.transform.affine();
+        if is_similarity(&instance.transform) {
+            let local = self.trees[instance.mesh as usize]
+                .closest_point(instance.transform.inverse().transform_point3(p))?;
+            let point = affine.transform_point3(local.point);
+            return Some(SceneClosestPoint {
+                point,
+                distance: (p - point).length(),
+                instance: id,
+                prim: local.prim,
+                u: local.u,
+                v: local.v,
+            });
+        }
+        let mesh = &self.scene.meshes[instance.mesh as usize].mesh;
+        let mut best: Option<SceneClosestPoint> = None;
+        let mut best_d2 = f64::INFINITY;
+        for (prim, t) in mesh.triangles().enumerate() {
+            if t.is_degenerate() {
+                continue;
+            }
+            let [a, b, c] = [t.p0, t.p1, t.p2].map(|v| affine.transform_point3(v.as_dvec3()));
+            let q = closest_point_on_triangle(p, a, b, c);
+            let d2 = (p - q.point).length_squared();
+            if d2 < best_d2 {
+                best_d2 = d2;
+                best = Some(SceneClosestPoint {
+                    point: q.point,
+                    distance: d2.sqrt(),
+                    instance: id,
+                    prim: prim as u32,
+                    u: q.u,
+                    v: q.v,
+                });
+            }
+        }
+        best
+    }
+}
+
+/// Whether `transform`'s linear part keeps distances in proportion: `AᵀA = s² I` to within
+/// `2^-40` relative (far above f64 rounding of a product of rotations and one scale).
+fn is_similarity(transform: &super::InstanceTransform) -> bool {
+    let a = transform.affine().matrix3;
+    let gram = a.transpose() * a;
+    let scale2 = (gram.x_axis.x + gram.y_axis.y + gram.z_axis.z) / 3.0;
+    let tolerance = scale2 / (1u64 << 40) as f64;
+    let identity = glam::DMat3::IDENTITY * scale2;
+    (0..3).all(|c| (gram.col(c) - identity.col(c)).abs().max_element() <= tolerance)
+}
+
+/// The distance from `p` to the nearest point of `bounds`, in f64: 0 inside.
+fn box_distance(bounds: &Aabb, p: DVec3) -> f64 {
+    let below = bounds.min.as_dvec3() - p;
+    let above = p - bounds.max.as_dvec3();
+    below.max(above).max(DVec3::ZERO).length()
+}
