@@ -132,7 +132,9 @@ fn rays(seeds: &[(Vec3, Vec3, u32, u8)], flat: &FlattenedScene) -> Vec<SceneRay>
         .iter()
         .enumerate()
         .map(|(k, &(origin, dir, mask, kind))| {
-            let target = match kind % 3 {
+            // A scene whose one instance was removed has no faces to aim at.
+            let aimed = if positions.is_empty() { 0 } else { kind % 3 };
+            let target = match aimed {
                 0 => origin + dir,
                 1 => {
                     let f =
