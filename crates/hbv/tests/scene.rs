@@ -244,23 +244,9 @@ fn world_triangle(
     [t.p0, t.p1, t.p2].map(|p| terms.affine.transform_point3(p.as_dvec3()))
 }
 
-/// The distance between the ray's line and the segment `a`–`b`.
-fn line_segment_distance(ray: &Ray, a: DVec3, b: DVec3) -> f64 {
-    let o = ray.origin.as_dvec3();
-    let d = ray.direction.as_dvec3().normalize();
-    let across = |v: DVec3| v - d * v.dot(d);
-    let (a, e) = (across(a - o), across(b - a));
-    let r = if e.length_squared() > 0.0 {
-        (-a.dot(e) / e.length_squared()).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (a + r * e).length()
-}
-
 /// Whether the ray's line passes within `eps` of an edge of `triangle`.
 fn near_an_edge(ray: &Ray, triangle: &[DVec3; 3], eps: f64) -> bool {
-    (0..3).any(|k| line_segment_distance(ray, triangle[k], triangle[(k + 1) % 3]) <= eps)
+    (0..3).any(|k| common::line_segment_distance(ray, triangle[k], triangle[(k + 1) % 3]) <= eps)
 }
 
 /// The module's bound on `|t_scene - t_flat|` for a hit at `t` on `triangle`.

@@ -110,20 +110,6 @@ fn epsilon(ray: &Ray, t: f64, conditioning: f64, offset: f64, world: f64) -> f64
         + 2f64.powi(-48) * conditioning * (o + offset)
 }
 
-/// The distance between the ray's line and the segment `a`–`b`.
-fn line_segment_distance(ray: &Ray, a: DVec3, b: DVec3) -> f64 {
-    let o = ray.origin.as_dvec3();
-    let d = ray.direction.as_dvec3().normalize();
-    let across = |v: DVec3| v - d * v.dot(d);
-    let (a, e) = (across(a - o), across(b - a));
-    let r = if e.length_squared() > 0.0 {
-        (-a.dot(e) / e.length_squared()).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    (a + r * e).length()
-}
-
 /// Rays from random origins: random directions, and ones aimed at triangle centres and
 /// vertices (through edges by design).
 fn rays(seeds: &[(Vec3, Vec3, u32, u8)], flat: &FlattenedScene) -> Vec<SceneRay> {
@@ -242,7 +228,7 @@ proptest! {
                 let f = flat.offsets[i as usize] + p;
                 let t = flat.mesh.triangle(f as usize);
                 let v = [t.p0, t.p1, t.p2].map(|p| p.as_dvec3());
-                let near = (0..3).any(|e| line_segment_distance(&ray.ray, v[e], v[(e + 1) % 3]) <= 2.0 * eps);
+                let near = (0..3).any(|e| common::line_segment_distance(&ray.ray, v[e], v[(e + 1) % 3]) <= 2.0 * eps);
                 prop_assert!(near, "ray {} {:?}: ({}, {}) hit by one answer only, far from its edges: {:?} vs {:?}", k, ray, i, p, a, b);
             }
             // Rays aimed at a vertex pass through edges by design; on the others it is rare.
@@ -299,14 +285,7 @@ proptest! {
 fn ties_go_to_the_smaller_instance_then_the_smaller_prim() {
     // Three instances of one sphere at the same place: every hit and every nearest point is a
     // tie between them.
-    let mut scene = Scene::new();
-    let sphere = scene.add_mesh(icosphere(Vec3::ZERO, 1.0, 2));
-    for _ in 0..3 {
-        scene
-            .add_instance(sphere, InstanceTransform::IDENTITY, u32::MAX)
-            .unwrap();
-    }
-    scene.build();
+    let (scene, _) = make_scene(&[(0, DAffine3::IDENTITY, u32::MAX); 3], 3, None);
     let ray = SceneRay::new(Ray::new(Vec3::new(-4.0, 0.1, 0.2), Vec3::X));
     let hits = scene.intersect_all(&ray);
     assert_eq!(hits.len(), 6);
@@ -343,17 +322,15 @@ fn a_stretched_instance_is_searched_in_world_space() {
 
 #[test]
 fn a_mirrored_plane_is_counted_once_per_crossing() {
-    let mut scene = Scene::new();
-    let plane = scene.add_mesh(ground_plane(1.0, 0.0, 1));
-    let mirror = InstanceTransform::new(DAffine3::from_scale(DVec3::new(1.0, -1.0, 1.0))).unwrap();
-    scene
-        .add_instance(plane, InstanceTransform::IDENTITY, 1)
-        .unwrap();
-    scene.add_instance(plane, mirror, 2).unwrap();
-    let lifted = InstanceTransform::from_translation(DVec3::new(0.0, 0.0, 1.0)).unwrap();
-    scene.add_instance(plane, lifted, 1).unwrap();
-    scene.build();
-    let ray = SceneRay::new(Ray::new(Vec3::new(0.1, 0.2, 3.0), -Vec3::Z));
+    // The ground plane (mesh 2, at z = -0.25), its mirror image in y, and a copy lifted by 1.
+    let mirror = DAffine3::from_scale(DVec3::new(1.0, -1.0, 1.0));
+    let lifted = DAffine3::from_translation(DVec3::Z);
+    let (scene, _) = make_scene(
+        &[(2, DAffine3::IDENTITY, 1), (2, mirror, 2), (2, lifted, 1)],
+        3,
+        None,
+    );
+    let ray = SceneRay::new(Ray::new(Vec3::new(0.13, 0.21, 3.0), -Vec3::Z));
     let hits = scene.intersect_all(&ray);
     // The lifted plane first; the two at z = 0 at the same t to an ulp, in either order.
     assert_eq!(hits.len(), 3);

@@ -264,3 +264,18 @@ pub fn mesh_and_coherent_rays(
         (Just(m), rays)
     })
 }
+
+/// The distance between the ray's line and the segment `a`–`b`, in f64: how near the line
+/// passes to an edge (the scene tests excuse rays within the accuracy bound of one).
+pub fn line_segment_distance(ray: &Ray, a: hbv::glam::DVec3, b: hbv::glam::DVec3) -> f64 {
+    let o = ray.origin.as_dvec3();
+    let d = ray.direction.as_dvec3().normalize();
+    let across = |v: hbv::glam::DVec3| v - d * v.dot(d);
+    let (a, e) = (across(a - o), across(b - a));
+    let r = if e.length_squared() > 0.0 {
+        (-a.dot(e) / e.length_squared()).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    (a + r * e).length()
+}
