@@ -3,7 +3,7 @@
 //! ([`AllHits`]) on the ray carried into its space, and the lists are merged in the scene's
 //! tie order.
 
-use super::instance::{Instance, InstanceState};
+use super::instance::Instance;
 use super::{Scene, SceneHit, SceneMesh, SceneRay};
 use crate::all_hits::AllHits;
 use crate::bvh::layout::AnyLayout;
@@ -59,23 +59,14 @@ impl Scene {
         if !ray.ray.is_valid() || ray.mask == 0 {
             return;
         }
-        let mut visit_seen = |id: u32| {
+        let mut prepared = PreparedRay::new(&ray.ray);
+        self.visit_instances(ray, &mut prepared, |id, _| {
             let instance = &self.instances[id as usize];
             if ray.sees(instance.mask) {
                 visit(id, instance);
             }
-        };
-        for &id in &self.pending {
-            visit_seen(id);
-        }
-        let mut prepared = PreparedRay::new(&ray.ray);
-        self.top_level
-            .walk(&mut prepared, self.box_pad(&ray.ray), |id, _| {
-                if self.instances[id as usize].state == InstanceState::Indexed {
-                    visit_seen(id);
-                }
-                false
-            });
+            false
+        });
     }
 }
 

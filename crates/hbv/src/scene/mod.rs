@@ -288,16 +288,10 @@ impl Scene {
         }
         let mut best: BestHit = None;
         let mut prepared = PreparedRay::new(&ray.ray);
-        for &id in &self.pending {
-            self.closest_in(id, ray, &mut prepared, &mut best);
-        }
-        self.top_level
-            .walk(&mut prepared, self.box_pad(&ray.ray), |id, prepared| {
-                if self.instances[id as usize].state == InstanceState::Indexed {
-                    self.closest_in(id, ray, prepared, &mut best);
-                }
-                false
-            });
+        self.visit_instances(ray, &mut prepared, |id, prepared| {
+            self.closest_in(id, ray, prepared, &mut best);
+            false
+        });
         best.map(|hit| {
             let i = &self.instances[hit.instance as usize];
             let triangle = self.meshes[i.mesh as usize]
@@ -322,18 +316,35 @@ impl Scene {
                     .layout
                     .occluded(&instance.carry(&ray.ray))
         };
-        if self.pending.iter().any(|&id| hit_in(id)) {
-            return true;
-        }
         let mut occluded = false;
         let mut prepared = PreparedRay::new(&ray.ray);
-        self.top_level
-            .walk(&mut prepared, self.box_pad(&ray.ray), |id, _| {
-                occluded =
-                    self.instances[id as usize].state == InstanceState::Indexed && hit_in(id);
-                occluded
-            });
+        self.visit_instances(ray, &mut prepared, |id, _| {
+            occluded = hit_in(id);
+            occluded
+        });
         occluded
+    }
+
+    /// Calls `visit(id, prepared)` with every live instance the ray may meet, each once: the
+    /// instances not yet in the top level in turn, then the top level's leaves whose boxes the
+    /// ray meets within `prepared`'s interval, nearest first (stale leaves of moved or removed
+    /// instances skipped). `visit` may shrink `prepared.tmax`, which culls farther boxes, and
+    /// returns whether to stop. Masks are `visit`'s to check.
+    pub(crate) fn visit_instances(
+        &self,
+        ray: &SceneRay,
+        prepared: &mut PreparedRay,
+        mut visit: impl FnMut(u32, &mut PreparedRay) -> bool,
+    ) {
+        for &id in &self.pending {
+            if visit(id, prepared) {
+                return;
+            }
+        }
+        self.top_level
+            .walk(prepared, self.box_pad(&ray.ray), |id, prepared| {
+                self.instances[id as usize].state == InstanceState::Indexed && visit(id, prepared)
+            });
     }
 
     /// [`Scene::intersect`] of every ray, in parallel on the current rayon pool.
