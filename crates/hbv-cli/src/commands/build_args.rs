@@ -113,8 +113,8 @@ impl BuildArgs {
         let start = Instant::now();
         let (mut tree, search_nodes_per_insertion) = match self.builder_name() {
             BuilderKind::Insertion => self
-                .builder_name()
-                .insertion_builder(&self.builder_options())
+                .builder_options()
+                .insertion_builder()
                 .build_with_report(mesh),
             _ => (self.builder().build(mesh), 0.0),
         };
@@ -145,7 +145,10 @@ impl BuildArgs {
                 };
                 format!(
                     "insertion (order {order}, leaf size {})",
-                    self.leaf_size.unwrap_or(1)
+                    self.builder_options()
+                        .insertion_builder()
+                        .config
+                        .max_leaf_size
                 )
             }
             _ => format!("{} (leaf size {leaf})", self.builder().name()),

@@ -46,6 +46,19 @@ pub struct BuilderOptions {
     pub optimize: bool,
 }
 
+impl BuilderOptions {
+    /// The insertion builder these options describe: for callers that want its report
+    /// ([`InsertionBuilder::build_with_report`]) as well as the tree.
+    pub fn insertion_builder(&self) -> InsertionBuilder {
+        InsertionBuilder::new(InsertionConfig {
+            order: self.insertion_order,
+            max_leaf_size: self
+                .leaf_size
+                .unwrap_or(BuilderKind::Insertion.default_leaf_size()),
+        })
+    }
+}
+
 impl BuilderKind {
     /// Every builder, in the order tables list them.
     pub const ALL: [BuilderKind; 5] = [
@@ -96,7 +109,7 @@ impl BuilderKind {
     pub fn builder(self, options: &BuilderOptions) -> Box<dyn Builder> {
         let leaf = options.leaf_size.unwrap_or(self.default_leaf_size());
         match self {
-            BuilderKind::Insertion => Box::new(self.insertion_builder(options)),
+            BuilderKind::Insertion => Box::new(options.insertion_builder()),
             BuilderKind::BinnedSah => {
                 let mut config = BinnedSahConfig::default();
                 config.leaf.max_leaf_size = leaf;
@@ -114,17 +127,6 @@ impl BuilderKind {
                 max_leaf_size: leaf,
             })),
         }
-    }
-
-    /// The insertion builder `options` describe, whatever `self` is: for callers that want its
-    /// report ([`InsertionBuilder::build_with_report`]).
-    pub fn insertion_builder(self, options: &BuilderOptions) -> InsertionBuilder {
-        InsertionBuilder::new(InsertionConfig {
-            order: options.insertion_order,
-            max_leaf_size: options
-                .leaf_size
-                .unwrap_or(BuilderKind::Insertion.default_leaf_size()),
-        })
     }
 
     /// Builds the tree over `mesh`, and improves it by reinsertion when `options.optimize`.
