@@ -17,7 +17,9 @@
 use glam::DVec3;
 
 use super::instance::{Instance, InstanceState};
-use super::{Scene, SceneRay};
+use std::sync::Arc;
+
+use super::{Scene, SceneMesh, SceneRay, SceneStructure};
 use crate::geometry::Aabb;
 use crate::proximity::{closest_point_on_triangle, ClosestPointTree, NearestPointSearch};
 
@@ -37,31 +39,43 @@ pub struct SceneClosestPoint {
     pub v: f64,
 }
 
-/// A scene's meshes made ready for nearest-point search: one [`ClosestPointTree`] per mesh,
-/// built when this is made (by the scene's builder), shared by every instance of the mesh.
-/// Make it once for many points; it answers the scene as it was when made.
+/// A scene's nearest-point queries, with or without a mask. Each mesh's search tree
+/// ([`ClosestPointTree`]) is made by the first query that reaches one of its instances and
+/// kept by the scene for every later query, until the mesh's vertices move.
 pub struct SceneNearestPoints<'a> {
     scene: &'a Scene,
-    trees: Vec<ClosestPointTree>,
 }
 
 impl Scene {
-    /// Each mesh's search tree, for [`SceneNearestPoints::closest_point`] on many points.
+    /// The scene's nearest-point queries ([`SceneNearestPoints`]).
     pub fn nearest_points(&self) -> SceneNearestPoints<'_> {
-        let s = &self.structure;
-        let trees = self
-            .meshes
-            .iter()
-            .map(|m| ClosestPointTree::new(&s.builder.build(&m.mesh, &s.builder_options), &m.mesh))
-            .collect();
-        SceneNearestPoints { scene: self, trees }
+        SceneNearestPoints { scene: self }
     }
 
     /// The nearest surface point of every live instance whose mask is not zero to `p` (module
-    /// notes). Builds each mesh's search tree for this one point: for many points, make
-    /// [`Scene::nearest_points`] once.
+    /// notes).
     pub fn closest_point(&self, p: DVec3) -> Option<SceneClosestPoint> {
         self.nearest_points().closest_point(p)
+    }
+}
+
+impl SceneMesh {
+    /// The mesh's nearest-point search tree, made on first use from the tree its layout was
+    /// laid out from when the scene kept it, else from a new build by `structure`.
+    fn search_tree(&self, structure: &SceneStructure) -> &ClosestPointTree {
+        self.search.get_or_init(|| {
+            let built;
+            let tree = match &self.tree {
+                Some(tree) => tree,
+                None => {
+                    built = structure
+                        .builder
+                        .build(&self.mesh, &structure.builder_options);
+                    &built
+                }
+            };
+            Arc::new(ClosestPointTree::new(tree, &self.mesh))
+        })
     }
 }
 
@@ -115,7 +129,9 @@ impl SceneNearestPoints<'_> {
     fn closest_on(&self, id: u32, instance: &Instance, p: DVec3) -> Option<SceneClosestPoint> {
         let affine = instance.transform.affine();
         if is_similarity(&instance.transform) {
-            let local = self.trees[instance.mesh as usize]
+            let scene = self.scene;
+            let local = scene.meshes[instance.mesh as usize]
+                .search_tree(&scene.structure)
                 .closest_point(instance.transform.inverse().transform_point3(p))?;
             let point = affine.transform_point3(local.point);
             return Some(SceneClosestPoint {

@@ -70,6 +70,7 @@ impl Scene {
         scene_mesh.bounds = moved.bounds();
         scene_mesh.mesh = moved;
         scene_mesh.tree = Some(tree);
+        scene_mesh.search = std::sync::OnceLock::new();
         for index in 0..self.instances.len() {
             let instance = self.instances[index];
             if instance.mesh == mesh.0 && instance.state != InstanceState::Removed {

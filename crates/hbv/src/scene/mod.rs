@@ -110,6 +110,8 @@ pub use scene_hit::{SceneHit, SceneRay};
 pub use structure::SceneStructure;
 pub use transform::InstanceTransform;
 
+use std::sync::{Arc, OnceLock};
+
 use rayon::prelude::*;
 
 use crate::bvh::layout::AnyLayout;
@@ -117,6 +119,7 @@ use crate::bvh::BuildTree;
 use crate::geometry::directed_rounding::f32_above;
 use crate::geometry::{Aabb, PreparedRay, Ray};
 use crate::mesh::{MeshError, TriangleMesh};
+use crate::proximity::ClosestPointTree;
 use crate::query::Accelerator;
 use glam::Vec3;
 use instance::{Instance, InstanceState};
@@ -141,6 +144,9 @@ struct SceneMesh {
     /// The tree `layout` was laid out from, kept once the mesh's vertices have moved
     /// ([`Scene::set_mesh_positions`]) for refitting it the next time.
     tree: Option<BuildTree>,
+    /// The mesh's nearest-point search tree: made by the first nearest-point query that
+    /// needs it, shared by every later one, dropped when the vertices move.
+    search: OnceLock<Arc<ClosestPointTree>>,
 }
 
 /// Meshes, their instances and the top-level BVH over the instances (module notes).
@@ -196,6 +202,7 @@ impl Scene {
             bounds,
             layout,
             tree: None,
+            search: OnceLock::new(),
         });
         MeshId(self.meshes.len() as u32 - 1)
     }
