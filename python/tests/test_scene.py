@@ -476,3 +476,48 @@ def test_transforms_given_as_3x4_and_4x4_agree():
     o, d = scene_rays(300, seed=19)
     np.testing.assert_array_equal(a.intersect(o, d)["t"], b.intersect(o, d)["t"])
     assert as_matrix(m[:3]).shape == (4, 4)
+
+
+def test_contains_warns_on_open_meshes():
+    v, f = cube()
+    scene = hbv.Scene()
+    scene.add((v, f))
+    scene.add((v, f[:-1]), affine(offset=(3, 0, 0)))  # a cube missing a face
+    with pytest.warns(RuntimeWarning, match=r"1 of the scene's 2 meshes are not closed \(mesh ids \[1\]"):
+        inside = scene.contains([[0.0, 0.0, 0.0], [0.0, 5.0, 0.0]])
+    np.testing.assert_array_equal(inside, [True, False])
+
+
+def test_queries_and_changes_from_several_threads():
+    # Queries run with the GIL released while other threads change the scene: each answers a
+    # whole scene (before or after a change), none fails.
+    import threading
+
+    v, f = icosphere(2, radius=0.4)
+    mesh = hbv.Mesh(v, f)
+    scene = hbv.Scene()
+    for k in range(20):
+        scene.add(mesh, affine(offset=(k % 5, k // 5, 0)))
+    o = np.c_[np.repeat(np.arange(5.0), 800), np.tile(np.arange(4.0), 1000), np.full(4000, 5.0)]
+    d = np.tile([0.0, 0.0, -1.0], (4000, 1))
+    errors = []
+
+    def query():
+        try:
+            for _ in range(5):
+                hits = scene.intersect(o, d)
+                assert hits["hit"].all()
+        except Exception as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    threads = [threading.Thread(target=query) for _ in range(3)]
+    for t in threads:
+        t.start()
+    for k in range(20):
+        scene.set_transform(k, affine(offset=(k % 5, k // 5, 0.1 * (k % 3))))
+        scene.set_mask(k, 1 + k)
+    for t in threads:
+        t.join()
+    assert not errors
+    np.testing.assert_allclose(scene.intersect(o, d)["t"], 5.0 - 0.4 - 0.1 * (
+        (o[:, 0] + 5 * o[:, 1]).astype(int) % 3), atol=2e-2)

@@ -17,7 +17,9 @@ use crate::masks::{one_mask, row_masks};
 use crate::mesh::mesh_error;
 use crate::ray_queries::{any_hits, closest_hits, hit_counts, RayArgs};
 use crate::scene_arguments::{instance_id, read_transform, MeshKey, NewMesh};
-use crate::scene_queries::{every_scene_hit, scene_closest_points, scene_inside, SceneTracer};
+use crate::scene_queries::{
+    every_scene_hit, scene_closest_points, scene_inside, MaskedPoints, SceneTracer,
+};
 use crate::thread_pool::ThreadCount;
 
 /// Meshes placed by instances, each with an id, a transform and a mask, in one two-level BVH.
@@ -371,7 +373,12 @@ impl PyScene {
         let masks = row_masks(mask, rows, "points")?;
         self.warn_if_open(py)?;
         let scene = self.current(py);
-        scene_inside(py, &scene, points.values(), rows, masks.as_slice(), threads)
+        let query = MaskedPoints {
+            points: points.values(),
+            rows,
+            masks: masks.as_slice(),
+        };
+        scene_inside(py, &scene, query, threads)
     }
 
     /// The nearest surface point among the instances each point's mask sees: a dict of arrays
@@ -390,7 +397,12 @@ impl PyScene {
         let (points, rows) = float_array("points", points, Some(3), None)?;
         let masks = row_masks(mask, rows, "points")?;
         let scene = self.current(py);
-        scene_closest_points(py, &scene, points.values(), rows, masks.as_slice(), threads)
+        let query = MaskedPoints {
+            points: points.values(),
+            rows,
+            masks: masks.as_slice(),
+        };
+        scene_closest_points(py, &scene, query, threads)
     }
 }
 

@@ -126,16 +126,27 @@ pub fn every_scene_hit<'py>(
     )
 }
 
+/// The points of a point query, each with its mask (no GIL needed).
+#[derive(Clone, Copy)]
+pub struct MaskedPoints<'a> {
+    pub points: FloatSlice<'a>,
+    pub rows: usize,
+    pub masks: MaskSlice<'a>,
+}
+
 /// Whether each point lies inside the scene (`Scene::contains_with_mask`), among the
 /// instances its mask sees.
 pub fn scene_inside<'py>(
     py: Python<'py>,
     scene: &Scene,
-    points: FloatSlice<'_>,
-    rows: usize,
-    masks: MaskSlice<'_>,
+    query: MaskedPoints<'_>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+    let MaskedPoints {
+        points,
+        rows,
+        masks,
+    } = query;
     let mut inside = vec![false; rows];
     py.detach(|| {
         fill_rows(threads, &mut inside[..], |first, out| {
@@ -154,11 +165,14 @@ pub fn scene_inside<'py>(
 pub fn scene_closest_points<'py>(
     py: Python<'py>,
     scene: &Scene,
-    points: FloatSlice<'_>,
-    rows: usize,
-    masks: MaskSlice<'_>,
+    query: MaskedPoints<'_>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let MaskedPoints {
+        points,
+        rows,
+        masks,
+    } = query;
     let (mut point, mut distance) = (vec![[0.0f64; 3]; rows], vec![0.0f64; rows]);
     let (mut prim, mut instance) = (vec![0i64; rows], vec![0i64; rows]);
     let (mut u, mut v) = (vec![0.0f64; rows], vec![0.0f64; rows]);
