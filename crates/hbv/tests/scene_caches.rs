@@ -70,7 +70,7 @@ fn random_scene(seed: u64, count: usize, built: usize, removed: Option<usize>) -
 }
 
 /// Coherent streams drawn from `seed`: from one eye, a small fan of rays around a random
-/// aim (neighbouring pixels), each followed by a shadow segment from its hit towards a light
+/// aim (neighbouring pixels; some with an f64 origin), each followed by a shadow segment from its hit towards a light
 /// and, now and then, a ray with another mask or a narrow interval.
 fn ray_stream(seed: u64, scene: &Scene) -> Vec<SceneRay> {
     let mut rng = Pcg64Mcg::seed_from_u64(seed ^ 0x5eed);
@@ -101,7 +101,14 @@ fn ray_stream(seed: u64, scene: &Scene) -> Vec<SceneRay> {
                 if rng.random_range(0..10) == 0 {
                     ray = ray.with_interval(0.3, 0.8);
                 }
-                let camera = SceneRay::new(ray).with_mask(mask);
+                let mut camera = SceneRay::new(ray).with_mask(mask);
+                if rng.random_range(0..7) == 0 {
+                    // An origin given in f64, off the f32 grid.
+                    let origin = eye.as_dvec3() + DVec3::splat(1e-9);
+                    camera = SceneRay::from_f64(origin, (target - eye).as_dvec3())
+                        .with_interval(ray.tmin, ray.tmax)
+                        .with_mask(mask);
+                }
                 rays.push(camera);
                 if let Some(hit) = scene.intersect(&camera) {
                     let point = camera.ray.at(hit.t);

@@ -80,11 +80,7 @@ impl<'a> SceneLastHitCache<'a> {
         match bound {
             Some(tmax) => {
                 self.stats.hits += 1;
-                let r = ray.ray;
-                SceneRay {
-                    ray: r.with_interval(r.tmin, tmax.min(r.tmax)),
-                    ..*ray
-                }
+                ray.with_interval(ray.ray.tmin, tmax.min(ray.ray.tmax))
             }
             None => {
                 self.stats.misses += 1;

@@ -131,7 +131,7 @@ impl Scene {
             return None;
         }
         let triangle = mesh.triangle(prim as usize);
-        let carried = owner.carry(&ray.ray);
+        let carried = owner.carry(ray);
         let hit = triangle.intersect(&PreparedRay::new(&carried))?;
         Some(PrimHit {
             hit,
@@ -184,7 +184,7 @@ impl Scene {
             if !ray.sees(instance.mask) {
                 return false;
             }
-            let world = ray.ray.with_interval(ray.ray.tmin, prepared.tmax);
+            let world = ray.with_interval(ray.ray.tmin, prepared.tmax);
             let layout = &self.meshes[instance.mesh as usize].layout;
             let carried = instance.carry(&world);
             let hit = count_entry(stats, |entry| layout.intersect_counted(&carried, entry));
@@ -231,7 +231,7 @@ impl Scene {
                 return false;
             }
             let layout = &self.meshes[instance.mesh as usize].layout;
-            found = occluder(layout, &instance.carry(&ray.ray)).map(|prim| (InstanceId(id), prim));
+            found = occluder(layout, &instance.carry(ray)).map(|prim| (InstanceId(id), prim));
             found.is_some()
         });
         found
