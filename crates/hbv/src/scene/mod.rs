@@ -91,6 +91,7 @@
 
 mod all_hits;
 mod brute_force;
+mod cached_queries;
 mod closest_point;
 mod error;
 mod gltf;

@@ -18,7 +18,6 @@
 //! repeated, the first discarded) and the median reported; tests per ray are counted on every
 //! ray. Cached answers are compared with plain ones (`mismatches`, always 0).
 
-use std::hint::black_box;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -29,9 +28,16 @@ use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 use hbv::cache::{CacheStats, LastHitCache, ShadowCache};
 use hbv::geometry::Ray;
 use hbv::grid::{GridConfig, UniformGrid};
+use hbv::mesh::MeshFormat;
 use hbv::{Accelerator, Hit, TraversalStats, TriangleMesh};
 use hbv_cli::ray_sets::{camera_image_size, primary_rays, secondary_rays, RaySet, Stage};
 use serde::Serialize;
+
+use super::instanced_field::DEFAULT_FIELD_INSTANCES;
+use super::seed_claims_scene::{measure_scene, print_scene_table, SceneReport, SceneSource};
+use super::traced::{
+    count_row, print_rows, time_cached, time_plain, CachedQueries, Query, Row, Traced,
+};
 
 use crate::commands::build_args::load_mesh;
 use crate::commands::flag_values::{grid_density, ray_count, seed};
@@ -39,9 +45,19 @@ use crate::commands::median::median;
 
 #[derive(Args)]
 pub struct SeedClaimsArgs {
-    /// Meshes (.obj, .ply, .gltf, .glb). Default: the built-in scene, then every
-    /// ../shared/scenes/*.ply when that folder exists.
+    /// Meshes (.obj, .ply) and scenes (.gltf, .glb: their nodes are instances, measured by the
+    /// scene form). Default: the built-in scene, then every ../shared/scenes/*.ply when that
+    /// folder exists (or only the built-in field, with --scene-default).
     pub meshes: Vec<PathBuf>,
+    /// Also measure the built-in scene of many instances sharing meshes (see --instances): the
+    /// two-level scene and its (instance, prim) caches against a BVH and a grid over its
+    /// flattened triangles.
+    #[arg(long)]
+    pub scene_default: bool,
+    /// Instances of the built-in field of --scene-default (1 to 100000).
+    #[arg(long, default_value_t = DEFAULT_FIELD_INSTANCES,
+          value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    pub instances: u32,
     /// Camera rays (a ⌈√N⌉-wide image); the secondary sets have one ray per camera hit.
     #[arg(long, default_value_t = 1 << 18, value_parser = ray_count)]
     pub rays: usize,
@@ -59,43 +75,6 @@ pub struct SeedClaimsArgs {
     pub json: bool,
 }
 
-/// The query of a ray set and the cache that goes with it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Query {
-    /// Closest hit; cache: [`LastHitCache`].
-    Closest,
-    /// Any hit; cache: [`ShadowCache`].
-    Occluded,
-}
-
-/// One structure on one set: plain and cached.
-#[derive(Serialize)]
-struct Row {
-    set: &'static str,
-    structure: String,
-    rays: usize,
-    hit_fraction: f64,
-    /// Median Mrays/s on one thread, without and with the cache.
-    mrays_per_second: f64,
-    cached_mrays_per_second: f64,
-    /// Boxes plus triangles tested per ray (grid: triangles; its cells are in `nodes_per_ray`).
-    tests_per_ray: f64,
-    cached_tests_per_ray: f64,
-    /// Nodes (BVH) or cells (grid) visited per ray.
-    nodes_per_ray: f64,
-    /// Triangle tests per ray saved by the grid's mailboxes.
-    mailbox_skips_per_ray: f64,
-    /// Fraction of queries where the cached triangle was hit.
-    cache_hit_rate: f64,
-    /// The same among the rays that hit something (or are occluded): how often the answer's
-    /// triangle, or one blocking as well, was the cached one.
-    cache_hit_rate_of_hits: f64,
-    /// Rays whose cached answer differs from the plain one (must be 0).
-    mismatches: usize,
-    runs: Vec<f64>,
-    cached_runs: Vec<f64>,
-}
-
 #[derive(Serialize)]
 struct MeshReport {
     mesh: String,
@@ -110,14 +89,46 @@ struct MeshReport {
     rows: Vec<Row>,
 }
 
-/// Runs the experiment on every mesh.
+/// One input's report: a mesh's or a scene's (the JSON array holds both, as they come).
+#[derive(Serialize)]
+#[serde(untagged)]
+enum Report {
+    Mesh(MeshReport),
+    Scene(SceneReport),
+}
+
+/// Runs the experiment on every mesh and scene.
 pub fn run(args: &SeedClaimsArgs) -> anyhow::Result<()> {
-    let meshes = mesh_list(&args.meshes)?;
+    let mut inputs: Vec<Option<PathBuf>> = if args.meshes.is_empty() && args.scene_default {
+        Vec::new()
+    } else {
+        mesh_list(&args.meshes)?
+    };
+    if args.scene_default {
+        // `None` after the named inputs: the built-in field.
+        inputs.push(None);
+    }
+    let field_at = args.scene_default.then(|| inputs.len() - 1);
     let mut reports = Vec::new();
-    for path in &meshes {
-        let report = measure_mesh(path.as_deref(), args)?;
+    for (k, path) in inputs.iter().enumerate() {
+        let scene = match path {
+            _ if Some(k) == field_at => Some(SceneSource::BuiltIn {
+                instances: args.instances,
+            }),
+            Some(p) if MeshFormat::from_path(p) == Some(MeshFormat::Gltf) => {
+                Some(SceneSource::File(p))
+            }
+            _ => None,
+        };
+        let report = match scene {
+            Some(source) => Report::Scene(measure_scene(source, args)?),
+            None => Report::Mesh(measure_mesh(path.as_deref(), args)?),
+        };
         if !args.json {
-            print_table(&report);
+            match &report {
+                Report::Mesh(r) => print_table(r),
+                Report::Scene(r) => print_scene_table(r),
+            }
         }
         reports.push(report);
     }
@@ -143,6 +154,35 @@ fn mesh_list(named: &[PathBuf]) -> anyhow::Result<Vec<Option<PathBuf>>> {
         list.extend(plys.into_iter().map(Some));
     }
     Ok(list)
+}
+
+/// A ray set, its query, its rays.
+pub type Set = (&'static str, Query, Vec<Ray>);
+
+/// The sets of the experiment on `mesh` (a scene's flattened mesh): `args.rays` camera rays at
+/// `stage` in scanline order, the mirror, diffuse and shadow rays at their hits (`closest`
+/// gives those, face ids of `mesh`) in pixel order, and as many shadow rays from random surface
+/// points. Also returns the camera's image size.
+pub fn ray_sets(
+    mesh: &TriangleMesh,
+    stage: &Stage,
+    args: &SeedClaimsArgs,
+    closest: impl FnOnce(&[Ray]) -> Vec<Option<Hit>>,
+) -> ([u32; 2], Vec<Set>) {
+    let (width, height) = camera_image_size(args.rays);
+    let mut primary = primary_rays(stage, width, height);
+    primary.truncate(args.rays);
+    let primary_hits = closest(&primary);
+    let secondary = secondary_rays(mesh, stage, &primary, &primary_hits, args.ray_seed);
+    let random_shadow = RaySet::Shadow.generate(mesh, secondary.shadow.len(), args.ray_seed);
+    let sets = vec![
+        ("primary", Query::Closest, primary),
+        ("reflection", Query::Closest, secondary.reflection),
+        ("diffuse", Query::Closest, secondary.diffuse),
+        ("shadow", Query::Occluded, secondary.shadow),
+        ("shadow-random", Query::Occluded, random_shadow),
+    ];
+    ([width, height], sets)
 }
 
 /// Every structure on every set of one mesh.
@@ -181,40 +221,31 @@ fn measure_mesh(path: Option<&Path>, args: &SeedClaimsArgs) -> anyhow::Result<Me
     }
 
     let stage = Stage::new(&mesh.bounds());
-    let (width, height) = camera_image_size(args.rays);
-    let mut primary = primary_rays(&stage, width, height);
-    primary.truncate(args.rays);
-    let primary_hits = structures[0].1.intersect_batch(&primary);
-    let secondary = secondary_rays(&mesh, &stage, &primary, &primary_hits, args.ray_seed);
-    let random_shadow = RaySet::Shadow.generate(&mesh, secondary.shadow.len(), args.ray_seed);
-    let sets: Vec<(&'static str, Query, Vec<Ray>)> = vec![
-        ("primary", Query::Closest, primary),
-        ("reflection", Query::Closest, secondary.reflection),
-        ("diffuse", Query::Closest, secondary.diffuse),
-        ("shadow", Query::Occluded, secondary.shadow),
-        ("shadow-random", Query::Occluded, random_shadow),
-    ];
+    let ([width, height], sets) = ray_sets(&mesh, &stage, args, |primary| {
+        structures[0].1.intersect_batch(primary)
+    });
 
     // Work counted on every ray, answers compared, then interleaved timing rounds.
     let mut rows = Vec::new();
     for (set, query, rays) in &sets {
         for (structure, accel) in &structures {
-            rows.push(count_row(
-                set,
-                *query,
-                rays,
-                structure,
-                accel.as_ref(),
-                &mesh,
-            ));
+            let traced = MeshTraced {
+                accel: accel.as_ref(),
+                mesh: &mesh,
+            };
+            rows.push(count_row(set, *query, rays, structure, &traced));
         }
     }
     for round in 0..=args.repeat {
         let mut k = 0;
         for (_, query, rays) in &sets {
             for (_, accel) in &structures {
-                let plain = time_plain(*query, rays, accel.as_ref());
-                let cached = time_cached(*query, rays, accel.as_ref(), &mesh);
+                let traced = MeshTraced {
+                    accel: accel.as_ref(),
+                    mesh: &mesh,
+                };
+                let plain = time_plain(*query, rays, &traced);
+                let cached = time_cached(*query, rays, &traced);
                 if round > 0 {
                     rows[k].runs.push(plain);
                     rows[k].cached_runs.push(cached);
@@ -241,113 +272,6 @@ fn measure_mesh(path: Option<&Path>, args: &SeedClaimsArgs) -> anyhow::Result<Me
     })
 }
 
-/// Counts the work of one structure on one set, plain and cached, and checks that the cache
-/// changes no answer.
-fn count_row(
-    set: &'static str,
-    query: Query,
-    rays: &[Ray],
-    structure: &str,
-    accel: &dyn Accelerator,
-    mesh: &TriangleMesh,
-) -> Row {
-    let mut plain = TraversalStats::default();
-    let mut cached = TraversalStats::default();
-    let mut hits = 0usize;
-    let mut mismatches = 0usize;
-    let cache_stats: CacheStats = match query {
-        Query::Closest => {
-            let mut cache = LastHitCache::new(accel, mesh);
-            for ray in rays {
-                let a: Option<Hit> = accel.intersect_counted(ray, &mut plain);
-                let b = cache.intersect_counted(ray, &mut cached);
-                hits += a.is_some() as usize;
-                mismatches += (a != b) as usize;
-            }
-            cache.stats()
-        }
-        Query::Occluded => {
-            let mut cache = ShadowCache::new(accel, mesh);
-            for ray in rays {
-                let a = accel.occluded_counted(ray, &mut plain);
-                let b = cache.occluded_counted(ray, &mut cached);
-                hits += a as usize;
-                mismatches += (a != b) as usize;
-            }
-            cache.stats()
-        }
-    };
-    Row {
-        set,
-        structure: structure.to_string(),
-        rays: rays.len(),
-        hit_fraction: hits as f64 / rays.len().max(1) as f64,
-        mrays_per_second: 0.0,
-        cached_mrays_per_second: 0.0,
-        tests_per_ray: plain.tests_per_ray(),
-        cached_tests_per_ray: cached.tests_per_ray(),
-        nodes_per_ray: plain.nodes_per_ray(),
-        mailbox_skips_per_ray: plain.mailbox_skips_per_ray(),
-        cache_hit_rate: cache_stats.hit_rate(),
-        cache_hit_rate_of_hits: cache_stats.hits as f64 / hits.max(1) as f64,
-        mismatches,
-        runs: Vec::new(),
-        cached_runs: Vec::new(),
-    }
-}
-
-/// Mrays/s of the plain queries, one thread, in the set's order; the set is traced again until
-/// [`MIN_SECONDS`] have passed, so that small sets are timed over more than a scheduler tick.
-fn time_plain(query: Query, rays: &[Ray], accel: &dyn Accelerator) -> f64 {
-    let start = Instant::now();
-    let mut traced = 0usize;
-    let mut found = 0usize;
-    while traced == 0 || start.elapsed().as_secs_f64() < MIN_SECONDS {
-        for ray in rays {
-            found += match query {
-                Query::Closest => accel.intersect(black_box(ray)).is_some(),
-                Query::Occluded => accel.occluded(black_box(ray)),
-            } as usize;
-        }
-        traced += rays.len().max(1);
-    }
-    black_box(found);
-    mrays(traced, start)
-}
-
-/// Mrays/s of the cached queries (a fresh cache each pass), timed as [`time_plain`].
-fn time_cached(query: Query, rays: &[Ray], accel: &dyn Accelerator, mesh: &TriangleMesh) -> f64 {
-    let start = Instant::now();
-    let mut traced = 0usize;
-    let mut found = 0usize;
-    while traced == 0 || start.elapsed().as_secs_f64() < MIN_SECONDS {
-        match query {
-            Query::Closest => {
-                let mut cache = LastHitCache::new(accel, mesh);
-                for ray in rays {
-                    found += cache.intersect(black_box(ray)).is_some() as usize;
-                }
-            }
-            Query::Occluded => {
-                let mut cache = ShadowCache::new(accel, mesh);
-                for ray in rays {
-                    found += cache.occluded(black_box(ray)) as usize;
-                }
-            }
-        }
-        traced += rays.len().max(1);
-    }
-    black_box(found);
-    mrays(traced, start)
-}
-
-/// Shortest time of one measurement.
-const MIN_SECONDS: f64 = 0.05;
-
-fn mrays(count: usize, start: Instant) -> f64 {
-    count as f64 / start.elapsed().as_secs_f64().max(1e-9) / 1e6
-}
-
 fn print_table(r: &MeshReport) {
     let [rx, ry, rz] = r.grid_resolution;
     println!("mesh      {}: {} triangles", r.mesh, r.triangles);
@@ -362,39 +286,68 @@ fn print_table(r: &MeshReport) {
         "rays      {} × {} camera; secondary sets at its hits; 1 thread, median of {} interleaved rounds",
         r.camera[0], r.camera[1], r.repeat
     );
-    println!(
-        "{:<14} {:<16} {:>7} {:>6} {:>8} {:>9} {:>9} {:>8} {:>9} {:>9} {:>6} {:>6} {:>8}",
-        "set",
-        "structure",
-        "rays",
-        "hit %",
-        "Mrays/s",
-        "tests/ray",
-        "nodes/ray",
-        "mb skips",
-        "cached",
-        "c tests",
-        "c hit%",
-        "of hit",
-        "mismatch"
-    );
-    for row in &r.rows {
-        println!(
-            "{:<14} {:<16} {:>7} {:>6.1} {:>8.3} {:>9.1} {:>9.1} {:>8.1} {:>9.3} {:>9.1} {:>6.1} {:>6.1} {:>8}",
-            row.set,
-            row.structure,
-            row.rays,
-            100.0 * row.hit_fraction,
-            row.mrays_per_second,
-            row.tests_per_ray,
-            row.nodes_per_ray,
-            row.mailbox_skips_per_ray,
-            row.cached_mrays_per_second,
-            row.cached_tests_per_ray,
-            100.0 * row.cache_hit_rate,
-            100.0 * row.cache_hit_rate_of_hits,
-            row.mismatches
-        );
-    }
+    print_rows(&r.rows.iter().collect::<Vec<_>>(), None);
     println!();
+}
+
+/// A mesh's structure and the mesh its caches test.
+pub struct MeshTraced<'a> {
+    pub accel: &'a dyn Accelerator,
+    pub mesh: &'a TriangleMesh,
+}
+
+/// The mesh caches over one structure.
+pub struct MeshCaches<'a> {
+    last: LastHitCache<'a, dyn Accelerator + 'a>,
+    shadow: ShadowCache<'a, dyn Accelerator + 'a>,
+}
+
+impl Traced for MeshTraced<'_> {
+    type Hit = Hit;
+    type Caches<'b>
+        = MeshCaches<'b>
+    where
+        Self: 'b;
+
+    fn closest(&self, ray: &Ray) -> Option<Hit> {
+        self.accel.intersect(ray)
+    }
+    fn occluded(&self, ray: &Ray) -> bool {
+        self.accel.occluded(ray)
+    }
+    fn closest_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> Option<Hit> {
+        self.accel.intersect_counted(ray, stats)
+    }
+    fn occluded_counted(&self, ray: &Ray, stats: &mut TraversalStats) -> bool {
+        self.accel.occluded_counted(ray, stats)
+    }
+    fn caches(&self) -> MeshCaches<'_> {
+        MeshCaches {
+            last: LastHitCache::new(self.accel, self.mesh),
+            shadow: ShadowCache::new(self.accel, self.mesh),
+        }
+    }
+}
+
+impl CachedQueries for MeshCaches<'_> {
+    type Hit = Hit;
+
+    fn closest(&mut self, ray: &Ray) -> Option<Hit> {
+        self.last.intersect(ray)
+    }
+    fn occluded(&mut self, ray: &Ray) -> bool {
+        self.shadow.occluded(ray)
+    }
+    fn closest_counted(&mut self, ray: &Ray, stats: &mut TraversalStats) -> Option<Hit> {
+        self.last.intersect_counted(ray, stats)
+    }
+    fn occluded_counted(&mut self, ray: &Ray, stats: &mut TraversalStats) -> bool {
+        self.shadow.occluded_counted(ray, stats)
+    }
+    fn stats(&self, query: Query) -> CacheStats {
+        match query {
+            Query::Closest => self.last.stats(),
+            Query::Occluded => self.shadow.stats(),
+        }
+    }
 }
