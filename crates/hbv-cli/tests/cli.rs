@@ -111,6 +111,21 @@ fn assert_trace_matches_brute_force(
     let occluded = hit_file::read_occlusion(&occ_path).unwrap();
     assert_eq!(occluded, brute.occluded_batch(rays));
 
+    // A mesh is a scene of one instance: each hit's `instance` is 0, its `normal` the unit
+    // geometric normal of the triangle hit (docs/RAYS.md, "Scenes (glTF)").
+    let scene_hits = hit_file::read_scene_hits(&hits_path).unwrap();
+    for (i, (g, h)) in got.iter().zip(&scene_hits).enumerate() {
+        assert_eq!(g.is_some(), h.is_some(), "ray {i}");
+        let Some(h) = h else { continue };
+        assert_eq!(h.instance, 0, "ray {i}");
+        let n = mesh.triangle(h.prim as usize).scaled_normal().normalize();
+        assert!(
+            (h.normal.as_dvec3() - n).length() < 1e-6,
+            "ray {i}: normal {} vs {n}",
+            h.normal
+        );
+    }
+
     // Without packets of coherent rays, the same answers, whatever the rays.
     let alone_path = dir.join("alone.npz");
     let out = hbv(&[

@@ -6,7 +6,7 @@ use clap::Args;
 use hbv::bvh::{expected_tests, sah_cost, SahWeights};
 use serde_json::json;
 
-use super::build_args::{load_scene, BuildArgs};
+use super::build_args::{load_input, BuildArgs};
 
 #[derive(Args)]
 pub struct InfoArgs {
@@ -21,7 +21,7 @@ pub struct InfoArgs {
 }
 
 pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
-    let scene = load_scene(args.mesh.as_deref())?;
+    let scene = load_input(args.mesh.as_deref())?;
     scene.check_build_options(&args.build)?;
     let (name, load_seconds, saved) = (
         scene.name.clone(),
