@@ -10,4 +10,5 @@ pub mod info;
 pub mod median;
 pub mod name_values;
 pub mod render;
+pub mod scene_info;
 pub mod trace;

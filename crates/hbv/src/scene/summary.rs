@@ -107,3 +107,99 @@ impl Scene {
             .collect()
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use glam::{DVec3, Vec3};
+
+    use super::*;
+    use crate::bvh::build::BuilderOptions;
+    use crate::mesh::procedural::{icosphere, torus};
+    use crate::scene::{InstanceId, InstanceTransform, MeshId, SceneStructure};
+
+    /// A sphere placed three times (one of them then removed), a torus once, and a mesh never
+    /// placed.
+    fn scene() -> Scene {
+        let mut scene = Scene::new();
+        let sphere = scene.add_mesh(icosphere(Vec3::ZERO, 1.0, 2));
+        let ring = scene.add_mesh(torus(Vec3::ZERO, 2.0, 0.5, 12, 8));
+        scene.add_mesh(icosphere(Vec3::ZERO, 1.0, 0));
+        for x in [0.0, 4.0, 8.0] {
+            let at = InstanceTransform::from_translation(DVec3::new(x, 0.0, 0.0)).unwrap();
+            scene.add_instance(sphere, at, u32::MAX).unwrap();
+        }
+        let up = InstanceTransform::from_translation(DVec3::new(0.0, 5.0, 0.0)).unwrap();
+        scene.add_instance(ring, up, u32::MAX).unwrap();
+        scene.build();
+        scene.remove_instance(InstanceId(1)).unwrap();
+        scene
+    }
+
+    #[test]
+    fn counts_meshes_instances_and_triangles_as_the_flattened_scene_does() {
+        let scene = scene();
+        let summary = scene.summary();
+        let sphere = scene.mesh(MeshId(0)).unwrap().triangle_count();
+        let ring = scene.mesh(MeshId(1)).unwrap().triangle_count();
+        let unplaced = scene.mesh(MeshId(2)).unwrap().triangle_count();
+        let instances: Vec<usize> = summary.meshes.iter().map(|m| m.instances).collect();
+        assert_eq!(instances, [2, 1, 0]);
+        assert_eq!(summary.live_instances, 3);
+        assert_eq!(summary.instance_ids, 4);
+        assert_eq!(summary.triangles_stored, sphere + ring + unplaced);
+        assert_eq!(summary.triangles_seen, 2 * sphere + ring);
+        let flat = scene.flattened().unwrap();
+        assert_eq!(summary.triangles_seen, flat.mesh.triangle_count());
+        assert_eq!(
+            summary.top_level_expected_tests,
+            scene.top_level_cost().current
+        );
+        assert!(summary.top_level_expected_tests >= 1.0);
+        // Bytes: each part positive, and the total their sum.
+        assert!(summary.mesh_bytes > 0 && summary.layout_bytes > 0);
+        assert!(summary.instance_bytes > 0);
+        assert_eq!(
+            summary.memory_bytes(),
+            summary.mesh_bytes + summary.layout_bytes + summary.instance_bytes
+        );
+        assert_eq!(
+            summary.meshes[0].mesh_bytes,
+            sphere * 12 + summary.meshes[0].vertices * 12
+        );
+    }
+
+    #[test]
+    fn mesh_expected_tests_are_those_of_a_tree_built_alike() {
+        let structure = SceneStructure {
+            builder: crate::bvh::build::BuilderKind::Insertion,
+            ..SceneStructure::default()
+        };
+        let mut scene = Scene::with_structure(structure);
+        let meshes = [
+            icosphere(Vec3::ZERO, 1.0, 3),
+            torus(Vec3::ZERO, 2.0, 0.5, 16, 8),
+        ];
+        for mesh in &meshes {
+            scene.add_mesh(mesh.clone());
+        }
+        let costs = scene.mesh_expected_tests();
+        for (mesh, cost) in meshes.iter().zip(costs) {
+            let tree = structure.builder.build(mesh, &BuilderOptions::default());
+            assert_eq!(cost, expected_tests(&tree));
+            assert!(cost > 1.0);
+        }
+    }
+
+    #[test]
+    fn an_empty_scene_sums_to_nothing() {
+        let mut scene = Scene::new();
+        scene.build();
+        let summary = scene.summary();
+        assert!(summary.meshes.is_empty());
+        assert_eq!(summary.live_instances, 0);
+        assert_eq!(summary.triangles_seen, 0);
+        assert_eq!(summary.top_level_expected_tests, 0.0);
+        assert_eq!(summary.memory_bytes(), 0);
+        assert!(scene.mesh_expected_tests().is_empty());
+    }
+}
