@@ -491,3 +491,77 @@ fn mesh_hit_files_carry_instance_and_normal() {
         assert!(raw.windows(name.len()).any(|w| w == name.as_bytes()));
     }
 }
+
+#[test]
+fn bench_measures_scenes_with_their_facts() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = instanced_scene();
+    let (scene_path, _) = write_inputs(dir.path(), &scene, &[]);
+    let text = run(&[
+        "bench",
+        &scene_path,
+        "--rays",
+        "2000",
+        "--repeat",
+        "1",
+        "--layout",
+        "wide8",
+        "--layout",
+        "ordered",
+        "--threads",
+        "2",
+        "--json",
+    ]);
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let summary = scene.summary();
+    assert_eq!(json["scene"]["meshes"], 2);
+    assert_eq!(json["scene"]["instances"], summary.live_instances);
+    assert_eq!(json["scene"]["triangles_seen"], summary.triangles_seen);
+    assert_eq!(json["triangles"], summary.triangles_stored);
+    assert_eq!(json["thread_counts"], serde_json::json!([1, 2]));
+    let results = json["results"].as_array().unwrap();
+    // 2 layouts × 4 (set, query) cases × 2 thread counts.
+    assert_eq!(results.len(), 16);
+    for r in results {
+        assert!(r["mrays_per_second"].as_f64().unwrap() > 0.0, "{r}");
+        assert!(r["nodes_per_ray"].is_null(), "{r}");
+    }
+    // The diffuse rays' closest hits and any hits agree on which rays hit something, and the
+    // two layouts on every fraction.
+    let fraction = |layout: &str, set: &str, query: &str| {
+        results
+            .iter()
+            .find(|r| r["layout"] == layout && r["ray_set"] == set && r["query"] == query)
+            .unwrap()["hit_fraction"]
+            .as_f64()
+            .unwrap()
+    };
+    let diffuse = fraction("wide8", "diffuse", "closest");
+    assert!(diffuse > 0.0);
+    assert_eq!(diffuse, fraction("wide8", "diffuse", "occluded"));
+    for (set, query) in [("primary", "closest"), ("shadow", "occluded")] {
+        assert_eq!(
+            fraction("wide8", set, query),
+            fraction("ordered", set, query)
+        );
+    }
+
+    // The table form names the scene's counts.
+    let text = run(&[
+        "bench",
+        &scene_path,
+        "--rays",
+        "500",
+        "--repeat",
+        "1",
+        "--layout",
+        "wide8",
+    ]);
+    assert!(
+        text.contains(&format!(
+            "{} instances; {} triangles stored, {} seen",
+            summary.live_instances, summary.triangles_stored, summary.triangles_seen
+        )),
+        "{text}"
+    );
+}
