@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{hbv, stderr, stdout, write_obj};
+use common::{hbv, point_in_box, random_direction, stderr, stdout, write_obj};
 
 use glam::Vec3;
 use hbv::geometry::Ray;
@@ -19,17 +19,10 @@ fn rays_at(mesh: &TriangleMesh, count: usize, seed: u64) -> Vec<Ray> {
     let mut rng = Pcg64Mcg::seed_from_u64(seed);
     let b = mesh.bounds();
     let (lo, ext) = (b.min, b.extent());
-    let unit = |rng: &mut Pcg64Mcg| {
-        Vec3::new(
-            rng.random::<f32>(),
-            rng.random::<f32>(),
-            rng.random::<f32>(),
-        )
-    };
     (0..count)
         .map(|i| {
-            let inside = lo + ext * unit(&mut rng);
-            let dir = (unit(&mut rng) - 0.5).normalize_or(Vec3::X);
+            let inside = point_in_box(&mut rng, lo, ext);
+            let dir = random_direction(&mut rng);
             match i % 4 {
                 0 => Ray::new(inside, dir),
                 1 => {

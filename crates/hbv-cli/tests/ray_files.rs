@@ -529,38 +529,31 @@ fn hit_files_without_scene_members_read_as_mesh_hits() {
     );
 
     // A hit whose instance is -1, and a normal of the wrong shape, are named.
-    let instance: Array1<i64> = array![-1, -1];
-    let normal = Array2::<f32>::zeros((2, 3));
-    let members: [(&str, &dyn Member); 7] = [
-        ("hit", &hit),
-        ("t", &t),
-        ("prim", &prim),
-        ("u", &zeros),
-        ("v", &zeros),
-        ("instance", &instance),
-        ("normal", &normal),
+    let cases: [(Array1<i64>, Array2<f32>, &[&str]); 2] = [
+        (
+            array![-1, -1],
+            Array2::zeros((2, 3)),
+            &["old.npz", "instance", "value -1 at index 0"],
+        ),
+        (
+            array![0, -1],
+            Array2::zeros((2, 2)),
+            &["old.npz", "normal", "(N, 3)"],
+        ),
     ];
-    npz(&path, false, &members);
-    assert_mentions(
-        &read_scene_hits(&path).unwrap_err().to_string(),
-        &["old.npz", "instance", "value -1 at index 0"],
-    );
-    let instance: Array1<i64> = array![0, -1];
-    let normal = Array2::<f32>::zeros((2, 2));
-    let members: [(&str, &dyn Member); 7] = [
-        ("hit", &hit),
-        ("t", &t),
-        ("prim", &prim),
-        ("u", &zeros),
-        ("v", &zeros),
-        ("instance", &instance),
-        ("normal", &normal),
-    ];
-    npz(&path, false, &members);
-    assert_mentions(
-        &read_scene_hits(&path).unwrap_err().to_string(),
-        &["old.npz", "normal", "(N, 3)"],
-    );
+    for (instance, normal, mentions) in cases {
+        let members: [(&str, &dyn Member); 7] = [
+            ("hit", &hit),
+            ("t", &t),
+            ("prim", &prim),
+            ("u", &zeros),
+            ("v", &zeros),
+            ("instance", &instance),
+            ("normal", &normal),
+        ];
+        npz(&path, false, &members);
+        assert_mentions(&read_scene_hits(&path).unwrap_err().to_string(), mentions);
+    }
 }
 
 #[test]

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 mod common;
-use common::{hbv, stderr, stdout, write_obj};
+use common::{hbv, point_in_box, random_direction, stderr, stdout, write_obj};
 
 use glam::{DAffine3, DQuat, DVec3, Vec3};
 use hbv::atomic_file::Replace;
@@ -66,17 +66,10 @@ fn rays_at(scene: &Scene, count: usize, seed: u64) -> Vec<Ray> {
     let mut rng = Pcg64Mcg::seed_from_u64(seed);
     let b = scene.bounds();
     let (lo, ext) = (b.min, b.extent());
-    let unit = |rng: &mut Pcg64Mcg| {
-        Vec3::new(
-            rng.random::<f32>(),
-            rng.random::<f32>(),
-            rng.random::<f32>(),
-        )
-    };
     (0..count)
         .map(|i| {
-            let dir = (unit(&mut rng) - 0.5).normalize_or(Vec3::X);
-            let inside = lo + ext * unit(&mut rng);
+            let dir = random_direction(&mut rng);
+            let inside = point_in_box(&mut rng, lo, ext);
             match i % 3 {
                 0 => {
                     let face = rng.random_range(0..flat.mesh.triangle_count());
@@ -301,51 +294,28 @@ fn info_reports_meshes_instances_triangles_and_costs() {
     assert_eq!(meshes[1]["instances"], 2);
 }
 
-/// A `.glb` file of one JSON chunk and one binary chunk (glTF 2.0, "GLB File Format").
-fn glb(json: &str, bin: &[u8]) -> Vec<u8> {
-    let mut json = json.as_bytes().to_vec();
-    while !json.len().is_multiple_of(4) {
-        json.push(b' ');
-    }
-    let mut bin = bin.to_vec();
-    while !bin.len().is_multiple_of(4) {
-        bin.push(0);
-    }
-    // A file without buffers has no binary chunk.
-    let bin_chunk = if bin.is_empty() { 0 } else { 8 + bin.len() };
-    let total = 12 + 8 + json.len() + bin_chunk;
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json);
-    if !bin.is_empty() {
-        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-        out.extend_from_slice(b"BIN\0");
-        out.extend_from_slice(&bin);
-    }
-    out
+/// The JSON of a `.gltf` file of one triangle (non-indexed, its positions in `tri.bin`, see
+/// [`write_triangle_buffer`]) placed by one node whose transform is `node` (JSON members).
+fn one_triangle_gltf(node: &str) -> String {
+    format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}],
+            "nodes": [{{"mesh": 0 {node}}}],
+            "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}}}]}}],
+            "buffers": [{{"byteLength": 36, "uri": "tri.bin"}}],
+            "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 36}}],
+            "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                            "min": [0, 0, 0], "max": [1, 1, 0]}}]}}"#
+    )
 }
 
-/// One triangle (non-indexed) placed by one node whose transform is `node` (JSON members).
-fn one_triangle_glb(node: &str) -> Vec<u8> {
+/// Writes `tri.bin` into `dir`: the corners (0, 0, 0), (1, 0, 0), (0, 1, 0) as float32.
+fn write_triangle_buffer(dir: &Path) {
     let bin: Vec<u8> = [[0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]
         .iter()
         .flatten()
         .flat_map(|c| c.to_le_bytes())
         .collect();
-    let json = format!(
-        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}],
-            "nodes": [{{"mesh": 0 {node}}}],
-            "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}}}]}}],
-            "buffers": [{{"byteLength": 36}}],
-            "bufferViews": [{{"buffer": 0, "byteOffset": 0, "byteLength": 36}}],
-            "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
-                            "min": [0, 0, 0], "max": [1, 1, 0]}}]}}"#
-    );
-    glb(&json, &bin)
+    std::fs::write(dir.join("tri.bin"), bin).unwrap();
 }
 
 #[test]
@@ -356,8 +326,9 @@ fn bad_scene_files_are_one_line_naming_the_file_and_reason() {
     ray_file::write_rays(&rays_path, &rays, Replace::Always).unwrap();
     let good = instanced_scene().to_glb();
     // The one-triangle file is good as it is: the ray hits it.
-    let plain = dir.path().join("plain.glb");
-    std::fs::write(&plain, one_triangle_glb("")).unwrap();
+    write_triangle_buffer(dir.path());
+    let plain = dir.path().join("plain.gltf");
+    std::fs::write(&plain, one_triangle_gltf("")).unwrap();
     let out = dir.path().join("hits.npz");
     run(&[
         "trace",
@@ -380,22 +351,19 @@ fn bad_scene_files_are_one_line_naming_the_file_and_reason() {
         ),
         ("empty.glb", Vec::new(), &["empty.glb"]),
         (
-            "flat.glb",
-            one_triangle_glb(r#", "scale": [1, 0, 1]"#),
-            &["flat.glb", "node 0", "singular"],
+            "flat.gltf",
+            one_triangle_gltf(r#", "scale": [1, 0, 1]"#).into_bytes(),
+            &["flat.gltf", "node 0", "singular"],
         ),
         (
-            "huge.glb",
-            one_triangle_glb(r#", "translation": [1e39, 0, 0]"#),
-            &["huge.glb", "node 0", "not finite"],
+            "huge.gltf",
+            one_triangle_gltf(r#", "translation": [1e39, 0, 0]"#).into_bytes(),
+            &["huge.gltf", "node 0", "not finite"],
         ),
         (
-            "no_triangles.glb",
-            glb(
-                r#"{"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{}]}"#,
-                &[],
-            ),
-            &["no_triangles.glb", "no triangles"],
+            "no_triangles.gltf",
+            br#"{"asset": {"version": "2.0"}, "scenes": [{"nodes": [0]}], "nodes": [{}]}"#.to_vec(),
+            &["no_triangles.gltf", "no triangles"],
         ),
     ];
     for (name, bytes, reasons) in cases {
@@ -432,7 +400,8 @@ fn bad_scene_files_are_one_line_naming_the_file_and_reason() {
     let left: Vec<_> = std::fs::read_dir(dir.path())
         .unwrap()
         .map(|e| e.unwrap().file_name().into_string().unwrap())
-        .filter(|n| !n.ends_with(".glb") && n != "rays.npz")
+        .filter(|n| !n.ends_with(".glb") && !n.ends_with(".gltf"))
+        .filter(|n| n != "rays.npz" && n != "tri.bin")
         .collect();
     assert!(left.is_empty(), "{left:?}");
 

@@ -242,12 +242,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         layouts,
         results,
     };
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print_tables(&report);
-    }
-    Ok(())
+    report.print(args.json)
 }
 
 /// Lays the tree out as `layout` and measures it on every (set, query) case and every pool.
@@ -465,7 +460,19 @@ fn count_tests(
     stats
 }
 
-pub(super) fn print_tables(report: &Report) {
+impl Report {
+    /// Prints the report as one JSON object, or as tables.
+    pub(super) fn print(&self, json: bool) -> anyhow::Result<()> {
+        if json {
+            println!("{}", serde_json::to_string_pretty(self)?);
+        } else {
+            print_tables(self);
+        }
+        Ok(())
+    }
+}
+
+fn print_tables(report: &Report) {
     let [w, h] = report.camera;
     let threads: Vec<String> = report.thread_counts.iter().map(|t| t.to_string()).collect();
     match &report.scene {

@@ -14,8 +14,8 @@ use hbv_cli::output_check::replace_policy;
 use hbv_cli::ray_sets::{camera_image_size, RaySet, Stage};
 
 use super::bench::{
-    measure, print_tables, requested_layouts, thread_pools, timed_hits, timed_occlusion,
-    write_ray_sets, BenchArgs, LayoutReport, Measured, Query, Report, SceneFacts,
+    measure, requested_layouts, thread_pools, timed_hits, timed_occlusion, write_ray_sets,
+    BenchArgs, LayoutReport, Measured, Query, Report, SceneFacts,
 };
 use super::build_args::{load_scene_file, AccelName};
 
@@ -115,10 +115,5 @@ pub fn run(path: &Path, args: &BenchArgs) -> anyhow::Result<()> {
         layouts: reports,
         results,
     };
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print_tables(&report);
-    }
-    Ok(())
+    report.print(args.json)
 }

@@ -23,7 +23,7 @@ pub struct MeshSummary {
 /// A scene's contents and sizes ([`Scene::summary`]).
 #[derive(Clone, Debug, PartialEq)]
 pub struct SceneSummary {
-    /// In [`MeshId`] order.
+    /// In [`MeshId`](super::MeshId) order.
     pub meshes: Vec<MeshSummary>,
     /// Instances not removed.
     pub live_instances: usize,
@@ -90,7 +90,7 @@ impl Scene {
         }
     }
 
-    /// E\[X\] of each mesh's BVH, in [`MeshId`] order: `Σ_n a_n SA(n) / SA(root)` over the tree
+    /// E\[X\] of each mesh's BVH, in [`MeshId`](super::MeshId) order: `Σ_n a_n SA(n) / SA(root)` over the tree
     /// its layout was made from ([`expected_tests`], as `hbv info` reports it for a mesh). The
     /// layouts do not keep their trees, so each is built again by the scene's builder (builds
     /// are deterministic: the same tree), in parallel on the current rayon pool; a mesh whose
