@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{hbv, stderr, stdout, write_obj};
+use common::{hbv, point_in_box, random_direction, stderr, stdout, write_obj};
 
 use glam::Vec3;
 use hbv::geometry::Ray;
@@ -19,17 +19,10 @@ fn rays_at(mesh: &TriangleMesh, count: usize, seed: u64) -> Vec<Ray> {
     let mut rng = Pcg64Mcg::seed_from_u64(seed);
     let b = mesh.bounds();
     let (lo, ext) = (b.min, b.extent());
-    let unit = |rng: &mut Pcg64Mcg| {
-        Vec3::new(
-            rng.random::<f32>(),
-            rng.random::<f32>(),
-            rng.random::<f32>(),
-        )
-    };
     (0..count)
         .map(|i| {
-            let inside = lo + ext * unit(&mut rng);
-            let dir = (unit(&mut rng) - 0.5).normalize_or(Vec3::X);
+            let inside = point_in_box(&mut rng, lo, ext);
+            let dir = random_direction(&mut rng);
             match i % 4 {
                 0 => Ray::new(inside, dir),
                 1 => {
@@ -110,6 +103,21 @@ fn assert_trace_matches_brute_force(
     }
     let occluded = hit_file::read_occlusion(&occ_path).unwrap();
     assert_eq!(occluded, brute.occluded_batch(rays));
+
+    // A mesh is a scene of one instance: each hit's `instance` is 0, its `normal` the unit
+    // geometric normal of the triangle hit (docs/RAYS.md, "Scenes (glTF)").
+    let scene_hits = hit_file::read_scene_hits(&hits_path).unwrap();
+    for (i, (g, h)) in got.iter().zip(&scene_hits).enumerate() {
+        assert_eq!(g.is_some(), h.is_some(), "ray {i}");
+        let Some(h) = h else { continue };
+        assert_eq!(h.instance, 0, "ray {i}");
+        let n = mesh.triangle(h.prim as usize).scaled_normal().normalize();
+        assert!(
+            (h.normal.as_dvec3() - n).length() < 1e-6,
+            "ray {i}: normal {} vs {n}",
+            h.normal
+        );
+    }
 
     // Without packets of coherent rays, the same answers, whatever the rays.
     let alone_path = dir.join("alone.npz");

@@ -6,8 +6,9 @@ use std::path::Path;
 use glam::Vec3;
 use hbv::atomic_file::Replace;
 use hbv::geometry::Ray;
+use hbv::scene::SceneHit;
 use hbv::Hit;
-use hbv_cli::hit_file::{read_hits, read_occlusion, write_hits, write_occlusion};
+use hbv_cli::hit_file::{read_hits, read_occlusion, read_scene_hits, write_hits, write_occlusion};
 use hbv_cli::ray_file::read_rays;
 use ndarray::{array, Array1, Array2, ShapeBuilder};
 use ndarray_npy::{NpzReader, NpzWriter, WriteNpyExt, WriteNpzError};
@@ -400,23 +401,42 @@ fn ray_error_unsupported_dtype() {
     );
 }
 
-fn sample_hits() -> Vec<Option<Hit>> {
+fn sample_hits() -> Vec<Option<SceneHit>> {
     vec![
-        Some(Hit {
+        Some(SceneHit {
             t: 1.5,
             prim: 7,
             u: 0.25,
             v: 0.5,
+            instance: 3,
+            normal: Vec3::new(0.0, -1.0, 0.0),
         }),
         None,
-        Some(Hit {
+        Some(SceneHit {
             t: 0.0,
             prim: u32::MAX,
             u: 0.0,
             v: 1.0,
+            instance: u32::MAX,
+            normal: Vec3::new(0.6, 0.0, 0.8),
         }),
         None,
     ]
+}
+
+/// The mesh members of [`sample_hits`], as [`read_hits`] gives them.
+fn sample_mesh_hits() -> Vec<Option<Hit>> {
+    sample_hits()
+        .iter()
+        .map(|h| {
+            h.map(|h| Hit {
+                t: h.t,
+                prim: h.prim,
+                u: h.u,
+                v: h.v,
+            })
+        })
+        .collect()
 }
 
 #[test]
@@ -425,11 +445,20 @@ fn hits_round_trip_with_misses() {
     let path = dir.path().join("hits.npz");
     let hits = sample_hits();
     write_hits(&path, &hits, Replace::Always).unwrap();
-    assert_eq!(read_hits(&path).unwrap(), hits);
+    assert_eq!(read_scene_hits(&path).unwrap(), hits);
+    assert_eq!(read_hits(&path).unwrap(), sample_mesh_hits());
 
     // The raw members: NumPy's names (`hit.npy`) and the values RAYS.md gives misses.
     let raw = fs::read(&path).unwrap();
-    for name in ["hit.npy", "t.npy", "prim.npy", "u.npy", "v.npy"] {
+    for name in [
+        "hit.npy",
+        "t.npy",
+        "prim.npy",
+        "u.npy",
+        "v.npy",
+        "instance.npy",
+        "normal.npy",
+    ] {
         assert!(raw.windows(name.len()).any(|w| w == name.as_bytes()));
     }
     let mut npz = NpzReader::new(File::open(&path).unwrap()).unwrap();
@@ -438,16 +467,93 @@ fn hits_round_trip_with_misses() {
     let prim: Array1<i64> = npz.by_name("prim").unwrap();
     let u: Array1<f32> = npz.by_name("u").unwrap();
     let v: Array1<f32> = npz.by_name("v").unwrap();
+    let instance: Array1<i64> = npz.by_name("instance").unwrap();
+    let normal: Array2<f32> = npz.by_name("normal").unwrap();
     assert_eq!(hit, array![true, false, true, false]);
     assert_eq!(t, array![1.5, f32::INFINITY, 0.0, f32::INFINITY]);
     assert_eq!(prim, array![7, -1, i64::from(u32::MAX), -1]);
     assert_eq!(u, array![0.25, 0.0, 0.0, 0.0]);
     assert_eq!(v, array![0.5, 0.0, 1.0, 0.0]);
+    assert_eq!(instance, array![3, -1, i64::from(u32::MAX), -1]);
+    assert_eq!(
+        normal,
+        array![
+            [0.0, -1.0, 0.0],
+            [0.0, 0.0, 0.0],
+            [0.6, 0.0, 0.8],
+            [0.0, 0.0, 0.0]
+        ]
+    );
 
     // Writing again replaces the file.
     write_hits(&path, &[], Replace::Always).unwrap();
     assert_eq!(read_hits(&path).unwrap(), vec![]);
+    assert_eq!(read_scene_hits(&path).unwrap(), vec![]);
     assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
+}
+
+/// A hit file of the mesh members only (as written before `instance` and `normal`, or by
+/// NumPy) still reads as mesh hits; as scene hits it names the member that is missing.
+#[test]
+fn hit_files_without_scene_members_read_as_mesh_hits() {
+    let dir = tmp();
+    let path = dir.path().join("old.npz");
+    let hit: Array1<bool> = array![true, false];
+    let t: Array1<f32> = array![2.0, f32::INFINITY];
+    let prim: Array1<i64> = array![4, -1];
+    let zeros = Array1::<f32>::zeros(2);
+    npz(
+        &path,
+        false,
+        &[
+            ("hit", &hit),
+            ("t", &t),
+            ("prim", &prim),
+            ("u", &zeros),
+            ("v", &zeros),
+        ],
+    );
+    let want = vec![
+        Some(Hit {
+            t: 2.0,
+            prim: 4,
+            u: 0.0,
+            v: 0.0,
+        }),
+        None,
+    ];
+    assert_eq!(read_hits(&path).unwrap(), want);
+    assert_mentions(
+        &read_scene_hits(&path).unwrap_err().to_string(),
+        &["old.npz", "instance"],
+    );
+
+    // A hit whose instance is -1, and a normal of the wrong shape, are named.
+    let cases: [(Array1<i64>, Array2<f32>, &[&str]); 2] = [
+        (
+            array![-1, -1],
+            Array2::zeros((2, 3)),
+            &["old.npz", "instance", "value -1 at index 0"],
+        ),
+        (
+            array![0, -1],
+            Array2::zeros((2, 2)),
+            &["old.npz", "normal", "(N, 3)"],
+        ),
+    ];
+    for (instance, normal, mentions) in cases {
+        let members: [(&str, &dyn Member); 7] = [
+            ("hit", &hit),
+            ("t", &t),
+            ("prim", &prim),
+            ("u", &zeros),
+            ("v", &zeros),
+            ("instance", &instance),
+            ("normal", &normal),
+        ];
+        npz(&path, false, &members);
+        assert_mentions(&read_scene_hits(&path).unwrap_err().to_string(), mentions);
+    }
 }
 
 #[test]

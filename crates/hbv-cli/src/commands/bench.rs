@@ -22,16 +22,18 @@ use serde::Serialize;
 
 use hbv::grid::{GridConfig, UniformGrid};
 
-use super::build_args::{load_mesh, thread_pool, AccelName, BuildArgs};
+use super::build_args::{is_scene_file, load_mesh, thread_pool, AccelName, BuildArgs};
 use super::flag_values::ray_count;
 use super::median::median;
 use super::name_values::layout_kind;
+use super::scene_bench;
 use hbv::bvh::build::BuilderKind;
 use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 
 #[derive(Args)]
 pub struct BenchArgs {
-    /// Mesh file (.obj, .ply, .gltf, .glb); the built-in scene when omitted.
+    /// Mesh file (.obj, .ply) or scene file (.gltf, .glb: its instances traced through the
+    /// top level, the rays made on its flattened triangles); the built-in scene when omitted.
     pub mesh: Option<PathBuf>,
     /// Layout to measure; repeat for several. Default: every layout.
     #[arg(long = "layout", value_name = "LAYOUT", value_parser = layout_kind())]
@@ -73,13 +75,13 @@ pub struct BenchArgs {
 
 /// The queries of [`hbv::Accelerator`], named as in `hbv trace --json`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Query {
+pub(super) enum Query {
     Closest,
     Occluded,
 }
 
 impl Query {
-    fn name(self) -> &'static str {
+    pub(super) fn name(self) -> &'static str {
         match self {
             Query::Closest => "closest",
             Query::Occluded => "occluded",
@@ -89,7 +91,7 @@ impl Query {
 
 /// What is measured on each set: camera and bounce rays want the closest hit; shadow rays, and
 /// bounce rays used as ambient-occlusion probes, only whether anything is hit.
-const CASES: [(RaySet, Query); 4] = [
+pub(super) const CASES: [(RaySet, Query); 4] = [
     (RaySet::Primary, Query::Closest),
     (RaySet::Diffuse, Query::Closest),
     (RaySet::Diffuse, Query::Occluded),
@@ -98,56 +100,73 @@ const CASES: [(RaySet, Query); 4] = [
 
 /// One layout as laid out for the benchmark.
 #[derive(Serialize)]
-struct LayoutReport {
-    layout: String,
+pub(super) struct LayoutReport {
+    pub(super) layout: String,
     /// Bytes of node and triangle data.
-    memory_bytes: usize,
-    layout_seconds: f64,
+    pub(super) memory_bytes: usize,
+    pub(super) layout_seconds: f64,
 }
 
 /// One measurement: a layout, a set, a query, a thread count.
 #[derive(Serialize)]
-struct Measurement {
-    layout: String,
-    ray_set: &'static str,
-    query: &'static str,
-    threads: usize,
-    rays: usize,
+pub(super) struct Measurement {
+    pub(super) layout: String,
+    pub(super) ray_set: &'static str,
+    pub(super) query: &'static str,
+    pub(super) threads: usize,
+    pub(super) rays: usize,
     /// Median of `runs`.
-    mrays_per_second: f64,
+    pub(super) mrays_per_second: f64,
     /// Every timed run, in Mrays/s, in the order run.
-    runs: Vec<f64>,
+    pub(super) runs: Vec<f64>,
     /// Fraction of the rays that hit (closest) or are occluded.
-    hit_fraction: f64,
-    memory_bytes: usize,
-    /// Mean work per ray on the counted subsample (the same on any thread count).
-    nodes_per_ray: f64,
-    boxes_per_ray: f64,
-    triangles_per_ray: f64,
-    counted_rays: u64,
+    pub(super) hit_fraction: f64,
+    pub(super) memory_bytes: usize,
+    /// Mean work per ray on the counted subsample (the same on any thread count); `None`
+    /// (JSON null) where the structure does not count its work (scenes).
+    pub(super) nodes_per_ray: Option<f64>,
+    pub(super) boxes_per_ray: Option<f64>,
+    pub(super) triangles_per_ray: Option<f64>,
+    pub(super) counted_rays: u64,
+}
+
+/// A scene's counts, beside `Report::triangles` (its triangles as stored).
+#[derive(Serialize)]
+pub(super) struct SceneFacts {
+    pub(super) meshes: usize,
+    pub(super) instances: usize,
+    pub(super) triangles_seen: usize,
 }
 
 #[derive(Serialize)]
-struct Report {
-    mesh: String,
-    triangles: usize,
-    builder: String,
-    load_seconds: f64,
-    build_seconds: f64,
-    rays_per_set: usize,
-    ray_seed: u64,
-    camera: [u32; 2],
-    light: [f32; 3],
-    repeat: u32,
-    thread_counts: Vec<usize>,
-    layouts: Vec<LayoutReport>,
-    results: Vec<Measurement>,
+pub(super) struct Report {
+    pub(super) mesh: String,
+    pub(super) triangles: usize,
+    pub(super) builder: String,
+    pub(super) load_seconds: f64,
+    /// `None` for a scene, whose meshes are built as it is loaded (each layout's
+    /// `layout_seconds`).
+    pub(super) build_seconds: Option<f64>,
+    /// What a scene holds; absent for a mesh.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub(super) scene: Option<SceneFacts>,
+    pub(super) rays_per_set: usize,
+    pub(super) ray_seed: u64,
+    pub(super) camera: [u32; 2],
+    pub(super) light: [f32; 3],
+    pub(super) repeat: u32,
+    pub(super) thread_counts: Vec<usize>,
+    pub(super) layouts: Vec<LayoutReport>,
+    pub(super) results: Vec<Measurement>,
 }
 
 /// Runs `hbv bench`: writes the ray sets, or measures every requested layout on them.
 pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     if let Some(dir) = &args.write_rays {
         check_ray_set_outputs(dir, args.force)?;
+    }
+    if let Some(path) = args.mesh.as_deref().filter(|p| is_scene_file(p)) {
+        return scene_bench::run(path, args);
     }
     let (mesh, name, load_seconds) = load_mesh(args.mesh.as_deref())?;
     if mesh.triangle_count() == mesh.degenerate_count() {
@@ -187,7 +206,13 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
                 memory_bytes,
                 layout_seconds: 0.0,
             };
-            results.extend(measure_accelerator(&grid, &report, &sets, &pools, args));
+            results.extend(measure(
+                &grid as &dyn Accelerator,
+                &report,
+                &sets,
+                &pools,
+                args,
+            ));
             layouts.push(report);
             let r = grid.shape().map_or([0; 3], |s| s.resolution);
             let described = format!(
@@ -206,7 +231,8 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         triangles: mesh.triangle_count(),
         builder: described,
         load_seconds,
-        build_seconds,
+        build_seconds: Some(build_seconds),
+        scene: None,
         rays_per_set: args.rays,
         ray_seed: args.ray_seed,
         camera: camera_image_size(args.rays).into(),
@@ -216,12 +242,7 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
         layouts,
         results,
     };
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
-    } else {
-        print_tables(&report);
-    }
-    Ok(())
+    report.print(args.json)
 }
 
 /// Lays the tree out as `layout` and measures it on every (set, query) case and every pool.
@@ -240,15 +261,45 @@ fn measure_layout(
         memory_bytes: accel.memory_bytes(),
         layout_seconds: start.elapsed().as_secs_f64(),
     };
-    let results = measure_accelerator(&accel, &report, sets, pools, args);
+    let results = measure(&accel as &dyn Accelerator, &report, sets, pools, args);
     (report, results)
 }
 
-/// Measures `accel` (named and sized by `report`) on every (set, query) case and every pool.
-fn measure_accelerator(
-    accel: &dyn Accelerator,
+/// What `hbv bench` measures: a mesh's acceleration structure or a scene, answering batches of
+/// its own kind of ray.
+pub(super) trait Measured: Sync {
+    type Ray: Sync;
+
+    /// Answers `query` on every ray as one batch, on the current pool; returns the seconds of
+    /// the batch call alone (collecting the answers, not counting or freeing them) and how many
+    /// rays hit (or are occluded).
+    fn answer(&self, rays: &[Self::Ray], query: Query) -> (f64, usize);
+
+    /// The work of `query` counted on at most `count` of `rays`, where the structure counts it.
+    fn count_tests(&self, rays: &[Self::Ray], query: Query, count: usize)
+        -> Option<TraversalStats>;
+}
+
+impl Measured for dyn Accelerator + '_ {
+    type Ray = Ray;
+
+    fn answer(&self, rays: &[Ray], query: Query) -> (f64, usize) {
+        match query {
+            Query::Closest => timed_hits(|| self.intersect_batch(rays)),
+            Query::Occluded => timed_occlusion(|| self.occluded_batch(rays)),
+        }
+    }
+
+    fn count_tests(&self, rays: &[Ray], query: Query, count: usize) -> Option<TraversalStats> {
+        Some(count_tests(self, rays, query, count))
+    }
+}
+
+/// Measures `measured` (named and sized by `report`) on every (set, query) case and every pool.
+pub(super) fn measure<M: Measured + ?Sized>(
+    measured: &M,
     report: &LayoutReport,
-    sets: &[(RaySet, Vec<Ray>)],
+    sets: &[(RaySet, Vec<M::Ray>)],
     pools: &[ThreadPool],
     args: &BenchArgs,
 ) -> Vec<Measurement> {
@@ -256,9 +307,9 @@ fn measure_accelerator(
     let mut results = Vec::new();
     for (set, query) in CASES {
         let rays = &sets.iter().find(|(s, _)| *s == set).expect("every set").1;
-        let stats = count_tests(accel, rays, query, args.counted_rays);
+        let stats = measured.count_tests(rays, query, args.counted_rays);
         for pool in pools {
-            let (runs, hits) = time_runs(accel, rays, query, pool, args.repeat);
+            let (runs, hits) = time_runs(measured, rays, query, pool, args.repeat);
             results.push(Measurement {
                 layout: report.layout.clone(),
                 ray_set: set.name(),
@@ -269,10 +320,10 @@ fn measure_accelerator(
                 runs,
                 hit_fraction: hits as f64 / rays.len().max(1) as f64,
                 memory_bytes,
-                nodes_per_ray: stats.nodes_per_ray(),
-                boxes_per_ray: stats.boxes_per_ray(),
-                triangles_per_ray: stats.triangles_per_ray(),
-                counted_rays: stats.rays,
+                nodes_per_ray: stats.map(|s| s.nodes_per_ray()),
+                boxes_per_ray: stats.map(|s| s.boxes_per_ray()),
+                triangles_per_ray: stats.map(|s| s.triangles_per_ray()),
+                counted_rays: stats.map_or(0, |s| s.rays),
             });
         }
     }
@@ -280,7 +331,7 @@ fn measure_accelerator(
 }
 
 /// `DIR/NAME.npz`, the file of ray set `set` written by `--write-rays DIR`.
-fn ray_set_path(dir: &std::path::Path, set: RaySet) -> PathBuf {
+pub(super) fn ray_set_path(dir: &std::path::Path, set: RaySet) -> PathBuf {
     dir.join(format!("{}.npz", set.name()))
 }
 
@@ -305,7 +356,7 @@ fn check_ray_set_outputs(dir: &std::path::Path, force: bool) -> anyhow::Result<(
 
 /// Writes each set as `DIR/NAME.npz`, creating `DIR` if needed ([`check_ray_set_outputs`]
 /// has checked the paths).
-fn write_ray_sets(
+pub(super) fn write_ray_sets(
     dir: &std::path::Path,
     sets: &[(RaySet, Vec<Ray>)],
     replace: Replace,
@@ -321,7 +372,7 @@ fn write_ray_sets(
 }
 
 /// A pool of one thread, and one of `threads` (0: every core) unless that is also one.
-fn thread_pools(threads: usize) -> anyhow::Result<Vec<ThreadPool>> {
+pub(super) fn thread_pools(threads: usize) -> anyhow::Result<Vec<ThreadPool>> {
     let mut pools = vec![thread_pool(1)?];
     let all = thread_pool(threads)?;
     if all.current_num_threads() > 1 {
@@ -331,7 +382,7 @@ fn thread_pools(threads: usize) -> anyhow::Result<Vec<ThreadPool>> {
 }
 
 /// The layouts asked for, each once in the order given; every layout when none is.
-fn requested_layouts(asked: &[LayoutKind]) -> Vec<LayoutKind> {
+pub(super) fn requested_layouts(asked: &[LayoutKind]) -> Vec<LayoutKind> {
     if asked.is_empty() {
         return LayoutKind::ALL.to_vec();
     }
@@ -347,38 +398,39 @@ fn requested_layouts(asked: &[LayoutKind]) -> Vec<LayoutKind> {
 /// Traces `rays` once untimed, then `repeat` times timed, on `pool`; returns each timed run's
 /// Mrays/s and the number of hits (or occluded rays). The timed span is the batch call alone,
 /// as in `hbv trace`: it includes collecting the answers, not freeing them.
-fn time_runs(
-    accel: &dyn Accelerator,
-    rays: &[Ray],
+fn time_runs<M: Measured + ?Sized>(
+    measured: &M,
+    rays: &[M::Ray],
     query: Query,
     pool: &ThreadPool,
     repeat: u32,
 ) -> (Vec<f64>, usize) {
-    let timed = || -> (f64, usize) {
-        let start = Instant::now();
-        match query {
-            Query::Closest => {
-                let hits = accel.intersect_batch(rays);
-                let seconds = start.elapsed().as_secs_f64();
-                (seconds, hits.iter().filter(|h| h.is_some()).count())
-            }
-            Query::Occluded => {
-                let occluded = accel.occluded_batch(rays);
-                let seconds = start.elapsed().as_secs_f64();
-                (seconds, occluded.iter().filter(|&&o| o).count())
-            }
-        }
-    };
     pool.install(|| {
-        let (_, hits) = timed();
+        let (_, hits) = measured.answer(rays, query);
         let runs = (0..repeat)
             .map(|_| {
-                let (seconds, _) = timed();
+                let (seconds, _) = measured.answer(rays, query);
                 rays.len() as f64 / seconds.max(1e-9) / 1e6
             })
             .collect();
         (runs, hits)
     })
+}
+
+/// The seconds `batch` takes, and how many of its answers are hits.
+pub(super) fn timed_hits<H>(batch: impl FnOnce() -> Vec<Option<H>>) -> (f64, usize) {
+    let start = Instant::now();
+    let hits = batch();
+    let seconds = start.elapsed().as_secs_f64();
+    (seconds, hits.iter().flatten().count())
+}
+
+/// The seconds `batch` takes, and how many of its answers say occluded.
+pub(super) fn timed_occlusion(batch: impl FnOnce() -> Vec<bool>) -> (f64, usize) {
+    let start = Instant::now();
+    let occluded = batch();
+    let seconds = start.elapsed().as_secs_f64();
+    (seconds, occluded.iter().filter(|&&o| o).count())
 }
 
 /// Work of `query` on at most `count` rays spread evenly over `rays` (every k-th), so that a
@@ -408,15 +460,36 @@ fn count_tests(
     stats
 }
 
+impl Report {
+    /// Prints the report as one JSON object, or as tables.
+    pub(super) fn print(&self, json: bool) -> anyhow::Result<()> {
+        if json {
+            println!("{}", serde_json::to_string_pretty(self)?);
+        } else {
+            print_tables(self);
+        }
+        Ok(())
+    }
+}
+
 fn print_tables(report: &Report) {
     let [w, h] = report.camera;
     let threads: Vec<String> = report.thread_counts.iter().map(|t| t.to_string()).collect();
-    println!("mesh      {}: {} triangles", report.mesh, report.triangles);
+    match &report.scene {
+        None => println!("mesh      {}: {} triangles", report.mesh, report.triangles),
+        Some(s) => println!(
+            "scene     {}: {} meshes, {} instances; {} triangles stored, {} seen",
+            report.mesh, s.meshes, s.instances, report.triangles, s.triangles_seen
+        ),
+    }
     println!("load      {:.3} s", report.load_seconds);
-    println!(
-        "build     {:.3} s, {}",
-        report.build_seconds, report.builder
-    );
+    match report.build_seconds {
+        Some(seconds) => println!("build     {seconds:.3} s, {}", report.builder),
+        None => println!(
+            "build     as loaded, {} (each layout's time: \"lay out\")",
+            report.builder
+        ),
+    }
     println!(
         "rays      {} per set, seed {}: primary = {w} × {h} camera, diffuse, shadow (light at [{:.4}, {:.4}, {:.4}])",
         report.rays_per_set, report.ray_seed, report.light[0], report.light[1], report.light[2]
@@ -460,10 +533,9 @@ fn print_tables(report: &Report) {
         for r in row {
             line += &format!(" {:>9.3}", r.mrays_per_second);
         }
-        line += &format!(
-            " {:>9.1} {:>9.1} {:>9.1}",
-            m.nodes_per_ray, m.boxes_per_ray, m.triangles_per_ray
-        );
+        for per_ray in [m.nodes_per_ray, m.boxes_per_ray, m.triangles_per_ray] {
+            line += &per_ray.map_or(format!(" {:>9}", "-"), |x| format!(" {x:>9.1}"));
+        }
         println!("{line}");
     }
 }

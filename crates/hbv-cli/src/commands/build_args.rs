@@ -7,9 +7,12 @@ use anyhow::Context;
 use clap::{Args, ValueEnum};
 use hbv::bvh::build::{Builder, BuilderKind, BuilderOptions, InsertionOrder};
 use hbv::bvh::file::{is_bvh_file, BvhFile};
+use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 use hbv::bvh::optimize::ReinsertionOptimizer;
 use hbv::bvh::BuildTree;
 use hbv::mesh::procedural::default_scene;
+use hbv::mesh::MeshFormat;
+use hbv::scene::SceneStructure;
 use hbv::TriangleMesh;
 
 use super::name_values::builder_kind;
@@ -81,6 +84,22 @@ impl BuildArgs {
         BuildArgs {
             builder: Some(self.builder.unwrap_or(builder)),
             ..self.clone()
+        }
+    }
+
+    /// How a scene built with these options builds and lays out each of its meshes: the
+    /// builder named (or `default` when none was), its options, and `layout`.
+    pub fn scene_structure(
+        &self,
+        default: BuilderKind,
+        layout: LayoutKind,
+        layout_options: LayoutOptions,
+    ) -> SceneStructure {
+        SceneStructure {
+            builder: self.builder.unwrap_or(default),
+            builder_options: self.builder_options(),
+            layout,
+            layout_options,
         }
     }
 
@@ -172,15 +191,34 @@ pub struct BuildReport {
 }
 
 /// Loads `path`, or makes the built-in scene when there is none, with the load time in seconds.
-/// A `.hbv` file gives its mesh (its tree is dropped; see [`load_scene`]).
+/// A `.hbv` file gives its mesh (its tree is dropped; see [`load_input`]); a glTF file its
+/// scene flattened into one world-space mesh.
 pub fn load_mesh(path: Option<&Path>) -> anyhow::Result<(TriangleMesh, String, f64)> {
-    let scene = load_scene(path)?;
-    Ok((scene.mesh, scene.name, scene.load_seconds))
+    let input = load_input(path)?;
+    Ok((input.mesh, input.name, input.load_seconds))
+}
+
+/// Whether `path` is a scene file: glTF (`.gltf`, `.glb`), whose nodes are instances of its
+/// meshes (`docs/RAYS.md`, "Scenes (glTF)"), and not a `.hbv` file under another name. `trace`,
+/// `info` and `bench` take it as a [`hbv::Scene`]; the other commands as its flattened mesh.
+pub fn is_scene_file(path: &Path) -> bool {
+    MeshFormat::from_path(path) == Some(MeshFormat::Gltf) && !is_bvh_file(path)
+}
+
+/// Loads the scene file at `path` and builds it as `structure` says, with the seconds that took
+/// (reading, each mesh's BVH and the top level together).
+pub fn load_scene_file(
+    path: &Path,
+    structure: SceneStructure,
+) -> anyhow::Result<(hbv::Scene, f64)> {
+    let start = Instant::now();
+    let scene = hbv::Scene::load_with_structure(path, structure).context("cannot load scene")?;
+    Ok((scene, start.elapsed().as_secs_f64()))
 }
 
 /// What a command's input gives: a mesh, and the tree saved with it when the input is a `.hbv`
 /// file (recognized by its magic number, whatever its name).
-pub struct Scene {
+pub struct Input {
     pub mesh: TriangleMesh,
     pub saved: Option<SavedTree>,
     pub name: String,
@@ -194,7 +232,7 @@ pub struct SavedTree {
 }
 
 /// Loads a mesh or a `.hbv` file at `path`, or makes the built-in scene when there is none.
-pub fn load_scene(path: Option<&Path>) -> anyhow::Result<Scene> {
+pub fn load_input(path: Option<&Path>) -> anyhow::Result<Input> {
     let start = Instant::now();
     let (mesh, saved, name) = match path {
         // By its magic number, or its name: a damaged or foreign `.hbv` file is then told apart
@@ -220,7 +258,7 @@ pub fn load_scene(path: Option<&Path>) -> anyhow::Result<Scene> {
             format!("built-in scene (detail {DEFAULT_SCENE_DETAIL})"),
         ),
     };
-    Ok(Scene {
+    Ok(Input {
         mesh,
         saved,
         name,
@@ -228,7 +266,7 @@ pub fn load_scene(path: Option<&Path>) -> anyhow::Result<Scene> {
     })
 }
 
-impl Scene {
+impl Input {
     /// Refuses building options given with a saved tree, which would otherwise be ignored.
     pub fn check_build_options(&self, build: &BuildArgs) -> anyhow::Result<()> {
         if self.saved.is_some()

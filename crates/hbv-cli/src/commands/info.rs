@@ -6,12 +6,14 @@ use clap::Args;
 use hbv::bvh::{expected_tests, sah_cost, SahWeights};
 use serde_json::json;
 
-use super::build_args::{load_scene, BuildArgs};
+use super::build_args::{is_scene_file, load_input, BuildArgs};
+use super::scene_info;
 
 #[derive(Args)]
 pub struct InfoArgs {
-    /// Mesh file (.obj, .ply, .gltf, .glb) or saved tree (.hbv, from `hbv build`); the built-in
-    /// scene when omitted.
+    /// Mesh file (.obj, .ply), scene file (.gltf, .glb: meshes, instances, the top level's and
+    /// each mesh's E[X]) or saved tree (.hbv, from `hbv build`); the built-in scene when
+    /// omitted.
     pub mesh: Option<PathBuf>,
     #[command(flatten)]
     pub build: BuildArgs,
@@ -21,7 +23,10 @@ pub struct InfoArgs {
 }
 
 pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
-    let scene = load_scene(args.mesh.as_deref())?;
+    if let Some(path) = args.mesh.as_deref().filter(|p| is_scene_file(p)) {
+        return scene_info::run(path, args);
+    }
+    let scene = load_input(args.mesh.as_deref())?;
     scene.check_build_options(&args.build)?;
     let (name, load_seconds, saved) = (
         scene.name.clone(),

@@ -10,4 +10,6 @@ pub mod info;
 pub mod median;
 pub mod name_values;
 pub mod render;
+pub mod scene_bench;
+pub mod scene_info;
 pub mod trace;

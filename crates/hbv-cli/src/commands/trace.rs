@@ -11,9 +11,14 @@ use serde_json::json;
 
 use hbv::geometry::Ray;
 use hbv::grid::{GridConfig, UniformGrid};
-use hbv::Accelerator;
+use hbv::scene::{SceneHit, SceneRay};
+use hbv::{Accelerator, Hit, TriangleMesh};
+use rayon::prelude::*;
+use rayon::ThreadPool;
 
-use super::build_args::{load_scene, thread_pool, AccelName, BuildArgs};
+use super::build_args::{
+    is_scene_file, load_input, load_scene_file, thread_pool, AccelName, BuildArgs,
+};
 use super::median::median;
 use super::name_values::layout_kind;
 use hbv::bvh::build::BuilderKind;
@@ -21,7 +26,8 @@ use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 
 #[derive(Args)]
 pub struct TraceArgs {
-    /// Mesh file (.obj, .ply, .gltf, .glb) or saved tree (.hbv, from `hbv build`).
+    /// Mesh file (.obj, .ply), scene file (.gltf, .glb: its nodes are instances of its meshes)
+    /// or saved tree (.hbv, from `hbv build`).
     pub mesh: PathBuf,
     /// Ray file (.npz with origins, directions, optional tmin, tmax).
     #[arg(long)]
@@ -66,10 +72,36 @@ pub struct TraceArgs {
     pub json: bool,
 }
 
+/// What is traced: a mesh's acceleration structure, or a scene of instances.
+enum Target {
+    Mesh {
+        mesh: TriangleMesh,
+        accel: Box<dyn Accelerator>,
+    },
+    Scene(hbv::Scene),
+}
+
+/// The facts printed about what was traced.
+struct Traced {
+    /// Triangles as stored: of the mesh, or summed over the scene's meshes.
+    triangles: usize,
+    /// Triangles as seen: summed over the instances (the mesh's own for a mesh).
+    triangles_seen: usize,
+    meshes: usize,
+    /// Live instances (1 for a mesh, a scene of one instance).
+    instances: usize,
+    /// How the structure was made.
+    built: String,
+    load_seconds: f64,
+    /// `None` for a scene, whose meshes are built as they are loaded (in `load_seconds`).
+    build_seconds: Option<f64>,
+}
+
 /// One trace's answers.
 enum Answers {
     Occluded(Vec<bool>),
-    Hits(Vec<Option<hbv::Hit>>),
+    MeshHits(Vec<Option<Hit>>),
+    SceneHits(Vec<Option<SceneHit>>),
 }
 
 pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
@@ -84,15 +116,134 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     // A missing folder is refused before the tracing, with the message the write would give.
     hbv::atomic_file::check_writable(&args.out).context("cannot write hits")?;
     let pool = thread_pool(args.threads)?;
-    let scene = load_scene(Some(&args.mesh))?;
-    scene.check_build_options(&args.build)?;
-    let load_seconds = scene.load_seconds;
+    let (target, traced) = if is_scene_file(&args.mesh) {
+        load_scene_target(args, &pool)?
+    } else {
+        build_mesh_target(args, &pool)?
+    };
     let rays = ray_file::read_rays(&args.rays).context("cannot read rays")?;
+    // Scenes take rays with masks; ray files have none, so every ray sees every instance.
+    let scene_rays: Vec<SceneRay> = match target {
+        Target::Scene(_) => rays.iter().map(|&r| SceneRay::from(r)).collect(),
+        Target::Mesh { .. } => Vec::new(),
+    };
+
+    let trace = || {
+        let start = Instant::now();
+        let answers = pool.install(|| target.trace(&rays, &scene_rays, args));
+        (answers, start.elapsed().as_secs_f64())
+    };
+    let (answers, first_seconds) = trace();
+    let mut run_seconds = vec![first_seconds];
+    for _ in 1..args.repeat {
+        // The same answers each time: only the time is kept.
+        run_seconds.push(trace().1);
+    }
+    let trace_seconds = median(&run_seconds);
+    let hit_count = match answers {
+        Answers::Occluded(occluded) => {
+            hit_file::write_occlusion(&args.out, &occluded, replace_policy(args.force))
+                .context("cannot write hits")?;
+            occluded.iter().filter(|&&o| o).count()
+        }
+        Answers::MeshHits(hits) => {
+            let Target::Mesh { mesh, .. } = &target else {
+                unreachable!("mesh hits come from a mesh");
+            };
+            let hits: Vec<Option<SceneHit>> = pool.install(|| {
+                hits.par_iter()
+                    .with_min_len(RAYS_PER_TASK)
+                    .map(|h| h.as_ref().map(|h| hit_file::mesh_hit(mesh, h)))
+                    .collect()
+            });
+            write_hits(args, &hits)?
+        }
+        Answers::SceneHits(hits) => write_hits(args, &hits)?,
+    };
+    let rays_per_second = if trace_seconds > 0.0 {
+        rays.len() as f64 / trace_seconds
+    } else {
+        0.0
+    };
+
+    if args.json {
+        let out = json!({
+            "mesh": args.mesh.display().to_string(),
+            "triangles": traced.triangles,
+            "triangles_seen": traced.triangles_seen,
+            "meshes": traced.meshes,
+            "instances": traced.instances,
+            "query": if args.occluded { "occluded" } else { "closest" },
+            "accel": traced.built,
+            "threads": pool.current_num_threads(),
+            "rays": rays.len(),
+            "hits": hit_count,
+            "load_seconds": traced.load_seconds,
+            "build_seconds": traced.build_seconds,
+            "trace_seconds": trace_seconds,
+            "trace_seconds_each": run_seconds,
+            "rays_per_second": rays_per_second,
+        });
+        println!("{}", serde_json::to_string_pretty(&out)?);
+    } else {
+        let query = if args.occluded {
+            "occluded"
+        } else {
+            "closest hit"
+        };
+        match &target {
+            Target::Mesh { .. } => println!(
+                "mesh      {} ({} triangles)",
+                args.mesh.display(),
+                traced.triangles
+            ),
+            Target::Scene(_) => println!(
+                "scene     {} ({} meshes, {} instances; {} triangles stored, {} seen)",
+                args.mesh.display(),
+                traced.meshes,
+                traced.instances,
+                traced.triangles,
+                traced.triangles_seen
+            ),
+        }
+        match traced.build_seconds {
+            Some(build_seconds) => {
+                println!("load      {:.3} s", traced.load_seconds);
+                println!("build     {build_seconds:.3} s ({})", traced.built);
+            }
+            None => println!(
+                "load      {:.3} s, building as loaded ({})",
+                traced.load_seconds, traced.built
+            ),
+        }
+        let runs = if args.repeat > 1 {
+            format!(" (median of {} runs)", args.repeat)
+        } else {
+            String::new()
+        };
+        println!("trace     {trace_seconds:.3} s{runs}, {} rays ({query}), {hit_count} hit, {:.3} Mrays/s on {} threads", rays.len(), rays_per_second / 1e6, pool.current_num_threads());
+        println!("wrote     {}", args.out.display());
+    }
+    Ok(())
+}
+
+/// Writes closest hits to `--out`; returns how many rays hit.
+fn write_hits(args: &TraceArgs, hits: &[Option<SceneHit>]) -> anyhow::Result<usize> {
+    hit_file::write_hits(&args.out, hits, replace_policy(args.force))
+        .context("cannot write hits")?;
+    Ok(hits.iter().filter(|h| h.is_some()).count())
+}
+
+/// Loads the mesh (or saved tree) of `--mesh` and builds the structure `--accel` names over it.
+fn build_mesh_target(args: &TraceArgs, pool: &ThreadPool) -> anyhow::Result<(Target, Traced)> {
+    let input = load_input(Some(&args.mesh))?;
+    input.check_build_options(&args.build)?;
+    let load_seconds = input.load_seconds;
     let build = args.build.or_builder(BuilderKind::BinnedSah);
     let (mesh, accel, build_seconds, built): (_, Box<dyn Accelerator>, f64, String) =
         match args.accel {
             AccelName::Bvh => {
-                let (mesh, built, builder_options) = pool.install(|| scene.tree(&build));
+                let (mesh, built, builder_options) = pool.install(|| input.tree(&build));
                 let build_seconds = built.build_seconds + built.optimize_seconds;
                 let options = LayoutOptions {
                     ray_packets: !args.no_packets,
@@ -101,7 +252,7 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
                 (mesh, accel, build_seconds, builder_options)
             }
             AccelName::Grid => {
-                let mesh = scene.mesh;
+                let mesh = input.mesh;
                 let start = Instant::now();
                 let grid = pool.install(|| UniformGrid::new(&mesh, GridConfig::default()));
                 let resolution = grid.shape().map_or([0; 3], |s| s.resolution);
@@ -120,91 +271,78 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
                 )
             }
         };
+    let traced = Traced {
+        triangles: mesh.triangle_count(),
+        triangles_seen: mesh.triangle_count(),
+        meshes: 1,
+        instances: 1,
+        built,
+        load_seconds,
+        build_seconds: Some(build_seconds),
+    };
+    Ok((Target::Mesh { mesh, accel }, traced))
+}
 
-    let trace = || {
-        let start = Instant::now();
-        let answers = if args.occluded {
-            Answers::Occluded(if args.one_by_one {
-                pool.install(|| one_by_one(&rays, |r| accel.occluded(r)))
-            } else {
-                pool.install(|| accel.occluded_batch(&rays))
-            })
-        } else {
-            Answers::Hits(if args.one_by_one {
-                pool.install(|| one_by_one(&rays, |r| accel.intersect(r)))
-            } else {
-                pool.install(|| accel.intersect_batch(&rays))
-            })
-        };
-        (answers, start.elapsed().as_secs_f64())
-    };
-    let (answers, first_seconds) = trace();
-    let mut run_seconds = vec![first_seconds];
-    for _ in 1..args.repeat {
-        // The same answers each time: only the time is kept.
-        run_seconds.push(trace().1);
-    }
-    let trace_seconds = median(&run_seconds);
-    let hit_count = match &answers {
-        Answers::Occluded(occluded) => {
-            hit_file::write_occlusion(&args.out, occluded, replace_policy(args.force))
-                .context("cannot write hits")?;
-            occluded.iter().filter(|&&o| o).count()
-        }
-        Answers::Hits(hits) => {
-            hit_file::write_hits(&args.out, hits, replace_policy(args.force))
-                .context("cannot write hits")?;
-            hits.iter().filter(|h| h.is_some()).count()
-        }
-    };
-    let rays_per_second = if trace_seconds > 0.0 {
-        rays.len() as f64 / trace_seconds
-    } else {
-        0.0
-    };
-
-    if args.json {
-        let out = json!({
-            "mesh": args.mesh.display().to_string(),
-            "triangles": mesh.triangle_count(),
-            "query": if args.occluded { "occluded" } else { "closest" },
-            "accel": built,
-            "threads": pool.current_num_threads(),
-            "rays": rays.len(),
-            "hits": hit_count,
-            "load_seconds": load_seconds,
-            "build_seconds": build_seconds,
-            "trace_seconds": trace_seconds,
-            "trace_seconds_each": run_seconds,
-            "rays_per_second": rays_per_second,
-        });
-        println!("{}", serde_json::to_string_pretty(&out)?);
-    } else {
-        let query = if args.occluded {
-            "occluded"
-        } else {
-            "closest hit"
-        };
-        println!(
-            "mesh      {} ({} triangles)",
-            args.mesh.display(),
-            mesh.triangle_count()
+/// Loads the scene file `--mesh`, each mesh built by `--builder` and laid out by `--layout`.
+fn load_scene_target(args: &TraceArgs, pool: &ThreadPool) -> anyhow::Result<(Target, Traced)> {
+    if args.accel == AccelName::Grid {
+        anyhow::bail!(
+            "{}: --accel grid takes a mesh; a glTF scene is traced by its two-level BVH \
+             (--accel bvh)",
+            args.mesh.display()
         );
-        println!("load      {load_seconds:.3} s");
-        println!("build     {build_seconds:.3} s ({built})");
-        let runs = if args.repeat > 1 {
-            format!(" (median of {} runs)", args.repeat)
-        } else {
-            String::new()
-        };
-        println!("trace     {trace_seconds:.3} s{runs}, {} rays ({query}), {hit_count} hit, {:.3} Mrays/s on {} threads", rays.len(), rays_per_second / 1e6, pool.current_num_threads());
-        println!("wrote     {}", args.out.display());
     }
-    Ok(())
+    let build = args.build.or_builder(BuilderKind::BinnedSah);
+    let options = LayoutOptions {
+        ray_packets: !args.no_packets,
+    };
+    let structure = build.scene_structure(BuilderKind::BinnedSah, args.layout, options);
+    let (scene, load_seconds) = pool.install(|| load_scene_file(&args.mesh, structure))?;
+    let summary = scene.summary();
+    let traced = Traced {
+        triangles: summary.triangles_stored,
+        triangles_seen: summary.triangles_seen,
+        meshes: summary.meshes.len(),
+        instances: summary.live_instances,
+        built: format!(
+            "each mesh: {}, {}; top level: binned SAH",
+            build.describe(),
+            args.layout
+        ),
+        load_seconds,
+        build_seconds: None,
+    };
+    Ok((Target::Scene(scene), traced))
+}
+
+/// Rays handed to one rayon task at least by `--one-by-one`, as in the library's batches.
+const RAYS_PER_TASK: usize = 256;
+
+impl Target {
+    /// The answers of the query `args` asks (closest or any hit; batch or one call per ray) on
+    /// `rays` (`scene_rays`, the same rays with their masks, for a scene), on the current pool.
+    fn trace(&self, rays: &[Ray], scene_rays: &[SceneRay], args: &TraceArgs) -> Answers {
+        match self {
+            Target::Mesh { accel, .. } => match (args.occluded, args.one_by_one) {
+                (true, true) => Answers::Occluded(one_by_one(rays, |r| accel.occluded(r))),
+                (true, false) => Answers::Occluded(accel.occluded_batch(rays)),
+                (false, true) => Answers::MeshHits(one_by_one(rays, |r| accel.intersect(r))),
+                (false, false) => Answers::MeshHits(accel.intersect_batch(rays)),
+            },
+            Target::Scene(scene) => match (args.occluded, args.one_by_one) {
+                (true, true) => Answers::Occluded(one_by_one(scene_rays, |r| scene.occluded(r))),
+                (true, false) => Answers::Occluded(scene.occluded_batch(scene_rays)),
+                (false, true) => Answers::SceneHits(one_by_one(scene_rays, |r| scene.intersect(r))),
+                (false, false) => Answers::SceneHits(scene.intersect_batch(scene_rays)),
+            },
+        }
+    }
 }
 
 /// `query` on each ray, one call per ray, in parallel on the current pool.
-fn one_by_one<T: Send>(rays: &[Ray], query: impl Fn(&Ray) -> T + Sync + Send) -> Vec<T> {
-    use rayon::prelude::*;
-    rays.par_iter().with_min_len(256).map(query).collect()
+fn one_by_one<R: Sync, T: Send>(rays: &[R], query: impl Fn(&R) -> T + Sync + Send) -> Vec<T> {
+    rays.par_iter()
+        .with_min_len(RAYS_PER_TASK)
+        .map(query)
+        .collect()
 }

@@ -6,7 +6,10 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+use hbv::glam::Vec3;
 use hbv::TriangleMesh;
+use rand::RngExt;
+use rand_pcg::Pcg64Mcg;
 
 /// Runs the `hbv` binary built for these tests with `args`.
 pub fn hbv(args: &[&str]) -> Output {
@@ -34,4 +37,14 @@ pub fn write_obj(mesh: &TriangleMesh, path: &Path) {
         s += &format!("f {} {} {}\n", a + 1, b + 1, c + 1);
     }
     std::fs::write(path, s).unwrap();
+}
+
+/// A point drawn uniformly from the box of corner `lo` and size `extent`.
+pub fn point_in_box(rng: &mut Pcg64Mcg, lo: Vec3, extent: Vec3) -> Vec3 {
+    lo + extent * Vec3::new(rng.random(), rng.random(), rng.random())
+}
+
+/// A direction drawn from the cube `[-1/2, 1/2]³`, normalized (`+x` if it is too short).
+pub fn random_direction(rng: &mut Pcg64Mcg) -> Vec3 {
+    (point_in_box(rng, Vec3::ZERO, Vec3::ONE) - 0.5).normalize_or(Vec3::X)
 }

@@ -102,6 +102,7 @@ mod live;
 mod mesh_motion;
 mod scene_hit;
 mod structure;
+mod summary;
 mod top_level;
 mod transform;
 
@@ -111,6 +112,7 @@ pub use error::SceneError;
 pub use live::{TopLevelCost, TopLevelUpdate};
 pub use scene_hit::{SceneHit, SceneRay};
 pub use structure::SceneStructure;
+pub use summary::{MeshSummary, SceneSummary};
 pub use transform::InstanceTransform;
 
 use std::sync::{Arc, OnceLock};
