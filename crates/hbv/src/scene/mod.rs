@@ -94,6 +94,7 @@ mod brute_force;
 mod closest_point;
 mod error;
 mod gltf;
+mod gltf_write;
 mod instance;
 mod live;
 mod mesh_motion;
