@@ -77,7 +77,7 @@ impl fmt::Display for BvhFileProblem {
             }
             BvhFileProblem::UnsupportedVersion { found, supported } => write!(
                 f,
-                "unknown format version {found} (this hbv reads version {supported})"
+                "unknown format version {found} (this hbv reads versions 1 to {supported})"
             ),
             BvhFileProblem::WrongKind { found, expected } => write!(
                 f,
