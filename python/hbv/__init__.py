@@ -3,7 +3,8 @@
 Build a bounding volume hierarchy over a mesh once, then ask it, for whole NumPy arrays of rays
 or points at a time (all cores, GIL released):
 
-- ``intersect``: the closest hit of each ray (``hit``, ``t``, ``prim``, ``u``, ``v``);
+- ``intersect``: the closest hit of each ray (``hit``, ``t``, ``prim``, ``u``, ``v``,
+  ``normal``);
 - ``occluded``: whether anything lies along each ray;
 - ``intersect_all`` / ``count``: every hit along each ray, in one traversal;
 - ``contains``: whether points lie inside a closed mesh (``Mesh.is_closed``; a RuntimeWarning
@@ -30,10 +31,28 @@ calling thread, where waking other threads would cost more than the work.
 writes the tree with its mesh to a ``.hbv`` file; ``hbv.load_bvh(path)`` reads it back without
 building again.
 
-``hbv.trimesh.RayMeshIntersector`` answers trimesh's ray queries with the same meaning.
+``hbv.Scene()`` holds many meshes placed by instances (``add(mesh, transform, mask)``), in one
+two-level BVH: the same queries, answering with the ``instance`` hit and its world ``normal``;
+``hbv.load_scene(path)`` reads a glTF file as one. ``hbv.interpolate`` gives per-vertex
+attributes (normals, uv, colours) at hits.
+
+``hbv.trimesh.RayMeshIntersector`` answers trimesh's ray queries with the same meaning;
+``hbv.trimesh.scene`` converts a ``trimesh.Scene``.
 """
 
-from ._hbv import BVH, Grid, Mesh, __version__, load, load_bvh
+from ._hbv import BVH, Grid, Mesh, Scene, __version__, load, load_bvh, load_scene
+from .vertex_attributes import interpolate
 from . import trimesh
 
-__all__ = ["BVH", "Grid", "Mesh", "load", "load_bvh", "trimesh", "__version__"]
+__all__ = [
+    "BVH",
+    "Grid",
+    "Mesh",
+    "Scene",
+    "interpolate",
+    "load",
+    "load_bvh",
+    "load_scene",
+    "trimesh",
+    "__version__",
+]

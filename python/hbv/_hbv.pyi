@@ -11,12 +11,32 @@ __version__: str
 _Floats = npt.ArrayLike
 _Bound = Union[None, float, npt.ArrayLike]
 
+_Mask = Union[None, int, npt.ArrayLike]
+
 class Hits(TypedDict):
     hit: npt.NDArray[np.bool_]
     t: npt.NDArray[np.float32]
     prim: npt.NDArray[np.int64]
     u: npt.NDArray[np.float32]
     v: npt.NDArray[np.float32]
+    normal: npt.NDArray[np.float32]
+
+class SceneHits(TypedDict):
+    hit: npt.NDArray[np.bool_]
+    t: npt.NDArray[np.float32]
+    prim: npt.NDArray[np.int64]
+    u: npt.NDArray[np.float32]
+    v: npt.NDArray[np.float32]
+    instance: npt.NDArray[np.int64]
+    normal: npt.NDArray[np.float32]
+
+class SceneClosestPoints(TypedDict):
+    point: npt.NDArray[np.float64]
+    distance: npt.NDArray[np.float64]
+    prim: npt.NDArray[np.int64]
+    u: npt.NDArray[np.float64]
+    v: npt.NDArray[np.float64]
+    instance: npt.NDArray[np.int64]
 
 class ClosestPoints(TypedDict):
     point: npt.NDArray[np.float64]
@@ -178,3 +198,86 @@ class Grid:
     def contains(self, points: _Floats, threads: Optional[int] = None) -> npt.NDArray[np.bool_]: ...
     def stats(self) -> dict[str, Any]: ...
     def __reduce__(self) -> Any: ...
+
+class Scene:
+    """Meshes placed by instances (id, transform, mask) in one two-level BVH.
+
+    ``add`` returns the instance id (0, 1, 2, ... in call order, never reused); the same mesh
+    object added twice is one mesh, instanced twice. A ray or point with mask m sees instance i
+    only if ``m & mask_i != 0``. Answers carry ``instance`` (-1 on a miss) and the unit world
+    ``normal``; ``prim``, ``u``, ``v`` are those of the instance's mesh.
+    """
+
+    def __init__(self) -> None: ...
+    def add(
+        self, mesh: Any, transform: Optional[npt.ArrayLike] = None, mask: Optional[int] = None
+    ) -> int:
+        """mesh: an hbv.Mesh, an hbv.BVH, a (vertices, faces) pair or an object with vertices
+        and faces (trimesh); float64 vertices are kept relative to their centre. transform: a
+        (4, 4) or (3, 4) matrix (float64), finite, affine and invertible."""
+    def set_transform(self, instance: int, transform: npt.ArrayLike) -> None: ...
+    def set_mask(self, instance: int, mask: int) -> None: ...
+    def remove(self, instance: int) -> None: ...
+    @property
+    def instance_count(self) -> int:
+        """Ids handed out, removed ones included."""
+    @property
+    def mesh_count(self) -> int: ...
+    @property
+    def bounds(self) -> Tuple[Tuple[float, float, float], Tuple[float, float, float]]: ...
+    def __len__(self) -> int:
+        """Instances not removed."""
+    def intersect(
+        self,
+        origins: _Floats,
+        directions: _Floats,
+        tmin: _Bound = None,
+        tmax: _Bound = None,
+        mask: _Mask = None,
+        threads: Optional[int] = None,
+    ) -> SceneHits: ...
+    def occluded(
+        self,
+        origins: _Floats,
+        directions: _Floats,
+        tmin: _Bound = None,
+        tmax: _Bound = None,
+        mask: _Mask = None,
+        threads: Optional[int] = None,
+    ) -> npt.NDArray[np.bool_]: ...
+    def intersect_all(
+        self,
+        origins: _Floats,
+        directions: _Floats,
+        tmin: _Bound = None,
+        tmax: _Bound = None,
+        mask: _Mask = None,
+        threads: Optional[int] = None,
+    ) -> Tuple[
+        npt.NDArray[np.int64],
+        npt.NDArray[np.float32],
+        npt.NDArray[np.int64],
+        npt.NDArray[np.int64],
+        npt.NDArray[np.float32],
+    ]:
+        """(ray, t, prim, instance, normal (H, 3)), by ray, then t, instance, prim."""
+    def count(
+        self,
+        origins: _Floats,
+        directions: _Floats,
+        tmin: _Bound = None,
+        tmax: _Bound = None,
+        mask: _Mask = None,
+        threads: Optional[int] = None,
+    ) -> npt.NDArray[np.int64]: ...
+    def contains(
+        self, points: _Floats, mask: _Mask = None, threads: Optional[int] = None
+    ) -> npt.NDArray[np.bool_]:
+        """Inside any instance the point's mask sees (the union); meshes must be closed."""
+    def closest_point(
+        self, points: _Floats, mask: _Mask = None, threads: Optional[int] = None
+    ) -> SceneClosestPoints: ...
+
+def load_scene(path: Union[str, PathLike[str]]) -> Scene:
+    """Reads a glTF file (.gltf, .glb) as a scene (docs/RAYS.md "Scenes (glTF)"); .obj or .ply
+    as one instance. OSError / ValueError naming file, place and reason."""

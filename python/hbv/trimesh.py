@@ -1,5 +1,6 @@
 """trimesh interop: ``RayMeshIntersector(mesh)`` answers the ray queries of
-``trimesh.ray.ray_triangle.RayMeshIntersector`` (and of trimesh's Embree one) with an hbv BVH.
+``trimesh.ray.ray_triangle.RayMeshIntersector`` (and of trimesh's Embree one) with an hbv BVH;
+``scene(trimesh_scene)`` makes an ``hbv.Scene`` of a ``trimesh.Scene``.
 
 Same methods, arguments and return types; hits are exact (watertight), every hit along a ray is
 found in one traversal, and rays run on all cores. trimesh itself is not needed to import this
@@ -12,13 +13,13 @@ module: any object with ``vertices`` (V, 3) and ``faces`` (F, 3) works as the me
 
 from __future__ import annotations
 
-from typing import Any, Optional, Tuple, Union
+from typing import Any, List, Optional, Tuple, Union
 
 import numpy as np
 
-from ._hbv import BVH, Mesh
+from ._hbv import BVH, Mesh, Scene
 
-__all__ = ["RayMeshIntersector"]
+__all__ = ["RayMeshIntersector", "scene", "scene_nodes"]
 
 
 class RayMeshIntersector:
@@ -102,6 +103,35 @@ class RayMeshIntersector:
     def contains_points(self, points: Any) -> np.ndarray:
         """Whether each point lies inside the (closed) mesh (bool); undefined on the surface."""
         return self.bvh.contains(np.asarray(points, dtype=np.float64).reshape(-1, 3))
+
+
+def scene(trimesh_scene: Any) -> Scene:
+    """An ``hbv.Scene`` of a ``trimesh.Scene``, placed by its node transforms.
+
+    Each node of the scene graph that carries a triangle mesh becomes an instance, in the order
+    of ``trimesh_scene.graph.nodes_geometry``, placed by the node's world transform
+    (``trimesh_scene.graph[node][0]``, float64); a geometry shared by several nodes is one mesh
+    of the hbv scene, built once and instanced. Vertices (float64 in trimesh) are kept relative
+    to each mesh's centre, so that scenes far from the origin keep float32's precision of each
+    mesh's size. Nodes whose geometry has no faces (point clouds, paths) are passed over, so
+    instance ``i`` is the ``i``-th node of ``scene_nodes(trimesh_scene)``.
+    """
+    out = Scene()
+    for node in scene_nodes(trimesh_scene):
+        transform, geometry_name = trimesh_scene.graph[node]
+        out.add(trimesh_scene.geometry[geometry_name], transform)
+    return out
+
+
+def scene_nodes(trimesh_scene: Any) -> List[str]:
+    """The nodes of a ``trimesh.Scene`` that ``scene`` makes instances of, in instance order:
+    those of ``graph.nodes_geometry`` whose geometry has faces."""
+    nodes = []
+    for node in trimesh_scene.graph.nodes_geometry:
+        _, geometry_name = trimesh_scene.graph[node]
+        if getattr(trimesh_scene.geometry[geometry_name], "faces", None) is not None:
+            nodes.append(node)
+    return nodes
 
 
 def _rays(origins: Any, directions: Any) -> Tuple[np.ndarray, np.ndarray]:

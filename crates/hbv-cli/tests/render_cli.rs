@@ -164,3 +164,42 @@ fn outputs_are_written_all_or_none() {
     );
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
+
+/// The example field of instances renders as a two-level scene on a fresh clone; a run that
+/// asks the two-level scene for a heatmap of counted work is refused before rendering.
+#[test]
+fn the_field_of_instances_renders_as_a_two_level_scene() {
+    let dir = tempfile::tempdir().unwrap();
+    let field = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/field.toml");
+    let field = field.to_str().unwrap();
+    let mut args = vec!["render", field, "--json"];
+    args.extend(SMALL);
+    let o = hbv_in(dir.path(), &args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(report["instances"].as_u64().unwrap() > 3000);
+    assert_eq!(report["meshes"], 4);
+    assert!(report["triangles"].as_u64().unwrap() > 1_000_000);
+    assert!(report["structure"]
+        .as_str()
+        .unwrap()
+        .starts_with("two-level"));
+    assert!(report["by_kind"]["shadow"]["cache"].is_null());
+    assert!(dir.path().join("render.png").exists());
+
+    let mut args = vec![
+        "render",
+        field,
+        "-o",
+        "heat.png",
+        "--instancing",
+        "two-level",
+    ];
+    args.extend(SMALL);
+    args.extend(["--pass", "nodes"]);
+    let o = hbv_in(dir.path(), &args);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("needs --instancing flat"), "{err}");
+    assert!(!dir.path().join("heat.png").exists());
+}

@@ -1,7 +1,7 @@
 //! NumPy arguments: checked for shape and dtype with errors that name the argument, read in
 //! place when they are C-contiguous float32 or float64, converted otherwise (strided, integer).
 
-use hbv::glam::Vec3;
+use hbv::glam::{DVec3, Vec3};
 use numpy::{
     PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
     PyUntypedArrayMethods,
@@ -50,6 +50,15 @@ impl FloatSlice<'_> {
         }
     }
 
+    /// Row `i` of an `(N, 3)` array as a float64 vector, exactly.
+    #[inline]
+    pub fn row3_f64(&self, i: usize) -> DVec3 {
+        match self {
+            FloatSlice::F32(v) => Vec3::from_slice(&v[3 * i..3 * i + 3]).as_dvec3(),
+            FloatSlice::F64(v) => DVec3::from_slice(&v[3 * i..3 * i + 3]),
+        }
+    }
+
     /// Row `i` of an `(N, 3)` array as a vector (in loops, match the slice once outside and
     /// use [`Coordinate::row3`]).
     #[inline]
@@ -83,7 +92,10 @@ impl Coordinate for f64 {
 }
 
 /// `obj` as a NumPy array (lists and other sequences through `numpy.asarray`).
-fn as_ndarray<'py>(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyUntypedArray>> {
+pub fn as_ndarray<'py>(
+    name: &str,
+    obj: &Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyUntypedArray>> {
     if let Ok(a) = obj.cast::<PyUntypedArray>() {
         return Ok(a.clone());
     }
@@ -104,14 +116,14 @@ fn as_ndarray<'py>(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<Bound<'py, P
     Ok(converted.cast::<PyUntypedArray>()?.clone())
 }
 
-fn type_name(obj: &Bound<'_, PyAny>) -> String {
+pub fn type_name(obj: &Bound<'_, PyAny>) -> String {
     obj.get_type()
         .name()
         .map(|n| n.to_string())
         .unwrap_or_else(|_| "object".into())
 }
 
-fn shape_text(shape: &[usize]) -> String {
+pub fn shape_text(shape: &[usize]) -> String {
     match shape {
         [n] => format!("({n},)"),
         _ => format!(
@@ -208,23 +220,7 @@ pub fn index_array(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<[u32; 3]>
             shape_text(&shape)
         )));
     }
-    let dtype = array.dtype();
-    if dtype.kind() != b'i' && dtype.kind() != b'u' {
-        return Err(PyTypeError::new_err(format!(
-            "{name}: expected an integer dtype, got {}",
-            dtype.str()?
-        )));
-    }
-    // Unsigned arrays as uint64 (an index above 2^63 read as int64 was shown negative).
-    let flat: Vec<i128> = if dtype.kind() == b'u' {
-        let as_u64 = array.call_method1("astype", ("uint64",))?;
-        let values = as_u64.cast::<PyArrayDyn<u64>>()?.readonly();
-        values.as_array().iter().map(|&i| i128::from(i)).collect()
-    } else {
-        let as_i64 = array.call_method1("astype", ("int64",))?;
-        let values = as_i64.cast::<PyArrayDyn<i64>>()?.readonly();
-        values.as_array().iter().map(|&i| i128::from(i)).collect()
-    };
+    let flat = integer_values(name, &array)?;
     if let Some(k) = flat
         .iter()
         .position(|&i| !(0..=i128::from(u32::MAX)).contains(&i))
@@ -244,6 +240,28 @@ pub fn index_array(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<[u32; 3]>
         .chunks_exact(3)
         .map(|c| [c[0] as u32, c[1] as u32, c[2] as u32])
         .collect())
+}
+
+/// The values of an integer array (of any integer dtype), in C order; a TypeError naming the
+/// argument for any other dtype.
+pub fn integer_values(name: &str, array: &Bound<'_, PyUntypedArray>) -> PyResult<Vec<i128>> {
+    let dtype = array.dtype();
+    if dtype.kind() != b'i' && dtype.kind() != b'u' {
+        return Err(PyTypeError::new_err(format!(
+            "{name}: expected an integer dtype, got {}",
+            dtype.str()?
+        )));
+    }
+    // Unsigned arrays as uint64 (an index above 2^63 read as int64 was shown negative).
+    Ok(if dtype.kind() == b'u' {
+        let as_u64 = array.call_method1("astype", ("uint64",))?;
+        let values = as_u64.cast::<PyArrayDyn<u64>>()?.readonly();
+        values.as_array().iter().map(|&i| i128::from(i)).collect()
+    } else {
+        let as_i64 = array.call_method1("astype", ("int64",))?;
+        let values = as_i64.cast::<PyArrayDyn<i64>>()?.readonly();
+        values.as_array().iter().map(|&i| i128::from(i)).collect()
+    })
 }
 
 /// A ray interval bound: one value for every ray, or one per ray.

@@ -23,7 +23,9 @@ use crate::arrays::{float_array, FloatSlice};
 use crate::build_options::BuildOptions;
 use crate::bvh_file::{describe, save};
 use crate::mesh::PyMesh;
-use crate::ray_queries::{any_hits, closest_hits, every_hit, hit_counts, inside, RayArgs};
+use crate::ray_queries::{
+    any_hits, closest_hits, every_hit, hit_counts, inside, MeshCounter, MeshTracer, RayArgs,
+};
 use crate::thread_pool::{one_thread, run_here_or_on_threads, ThreadCount};
 
 /// A bounding volume hierarchy over a mesh, answering ray and point queries.
@@ -106,6 +108,11 @@ impl PyBvh {
         }
     }
 
+    /// The mesh and the tree built over it (what `hbv.Scene.add` lays out again).
+    pub fn mesh_and_tree(&self) -> (&Arc<TriangleMesh>, &Arc<BuildTree>) {
+        (&self.triangles, &self.tree)
+    }
+
     fn wide(&self) -> &Arc<Wide8Layout> {
         self.wide
             .get_or_init(|| Arc::new(Wide8Layout::new(&self.tree, &self.triangles)))
@@ -173,7 +180,9 @@ impl PyBvh {
     }
 
     /// Closest hits: a dict of arrays `hit` (bool), `t` (float32, inf on a miss), `prim`
-    /// (int64, -1 on a miss), `u`, `v` (float32 barycentrics, 0 on a miss), as docs/RAYS.md.
+    /// (int64, -1 on a miss), `u`, `v` (float32 barycentrics, 0 on a miss), `normal` ((N, 3)
+    /// float32, the unit geometric normal normalize(cross(p1 - p0, p2 - p0)) of the triangle
+    /// hit, 0 on a miss), as docs/RAYS.md.
     #[pyo3(signature = (origins, directions, tmin=None, tmax=None, threads=None))]
     fn intersect<'py>(
         &self,
@@ -185,7 +194,11 @@ impl PyBvh {
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        closest_hits(py, self.accel(py), &args, threads)
+        let tracer = MeshTracer {
+            accel: self.accel(py),
+            mesh: &self.triangles,
+        };
+        closest_hits(py, &tracer, &args, threads)
     }
 
     /// Any hit: a bool array, true where anything lies in [tmin, tmax] along the ray.
@@ -200,7 +213,11 @@ impl PyBvh {
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        any_hits(py, self.accel(py), &args, threads)
+        let tracer = MeshTracer {
+            accel: self.accel(py),
+            mesh: &self.triangles,
+        };
+        any_hits(py, &tracer, &args, threads)
     }
 
     /// Every hit along each ray, found in one traversal per ray: a tuple of arrays
@@ -235,7 +252,7 @@ impl PyBvh {
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        hit_counts(py, || &**self.wide(), &args, threads)
+        hit_counts(py, || MeshCounter(&**self.wide()), &args, threads)
     }
 
     /// Whether each point lies inside the (closed) mesh: bool array. One ray's parity, exact:

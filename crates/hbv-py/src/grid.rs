@@ -11,7 +11,9 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use crate::mesh::PyMesh;
-use crate::ray_queries::{any_hits, closest_hits, every_hit, hit_counts, inside, RayArgs};
+use crate::ray_queries::{
+    any_hits, closest_hits, every_hit, hit_counts, inside, MeshCounter, MeshTracer, RayArgs,
+};
 use crate::thread_pool::ThreadCount;
 
 /// A uniform grid over a mesh (cells of equal size, each listing the triangles that overlap it,
@@ -74,7 +76,7 @@ impl PyGrid {
         self.grid.config().lambda
     }
 
-    /// Closest hits, as `BVH.intersect`: a dict of arrays `hit`, `t`, `prim`, `u`, `v`.
+    /// Closest hits, as `BVH.intersect`: a dict of arrays `hit`, `t`, `prim`, `u`, `v`, `normal`.
     #[pyo3(signature = (origins, directions, tmin=None, tmax=None, threads=None))]
     fn intersect<'py>(
         &self,
@@ -86,7 +88,11 @@ impl PyGrid {
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyDict>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        closest_hits(py, &self.grid, &args, threads)
+        let tracer = MeshTracer {
+            accel: &self.grid,
+            mesh: &self.triangles,
+        };
+        closest_hits(py, &tracer, &args, threads)
     }
 
     /// Any hit, as `BVH.occluded`: a bool array.
@@ -101,7 +107,11 @@ impl PyGrid {
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        any_hits(py, &self.grid, &args, threads)
+        let tracer = MeshTracer {
+            accel: &self.grid,
+            mesh: &self.triangles,
+        };
+        any_hits(py, &tracer, &args, threads)
     }
 
     /// Every hit along each ray in one walk through the cells, as `BVH.intersect_all`: a tuple
@@ -132,7 +142,7 @@ impl PyGrid {
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
         let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        hit_counts(py, || &self.grid, &args, threads)
+        hit_counts(py, || MeshCounter(&self.grid), &args, threads)
     }
 
     /// Whether each point lies inside the (closed) mesh, as `BVH.contains`.

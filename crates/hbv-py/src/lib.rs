@@ -2,8 +2,9 @@
 //!
 //! A thin layer: NumPy arrays are checked and read in place (`arrays.rs`), trees are built with
 //! the options of the command line (`build_options.rs`), and every query is the library's own,
-//! run on all cores with the GIL released (`bvh.rs`, `thread_pool.rs`). Answer arrays are Rust
-//! vectors handed to NumPy, from an allocator that keeps freed pages (`allocator.rs`).
+//! run on all cores with the GIL released (`bvh.rs`, `thread_pool.rs`); scenes of many meshes
+//! placed by instances are `scene.rs`. Answer arrays are Rust vectors handed to NumPy, from an
+//! allocator that keeps freed pages (`allocator.rs`).
 
 use pyo3::prelude::*;
 
@@ -13,9 +14,13 @@ mod build_options;
 mod bvh;
 mod bvh_file;
 mod grid;
+mod masks;
 mod mesh;
 mod output_column;
 mod ray_queries;
+mod scene;
+mod scene_arguments;
+mod scene_queries;
 mod thread_pool;
 
 #[pymodule]
@@ -24,9 +29,11 @@ fn _hbv(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<mesh::PyMesh>()?;
     m.add_class::<bvh::PyBvh>()?;
     m.add_class::<grid::PyGrid>()?;
+    m.add_class::<scene::PyScene>()?;
     m.add_function(wrap_pyfunction!(bvh_file::load_bvh, m)?)?;
     m.add_function(wrap_pyfunction!(bvh_file::_bvh_from_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::load, m)?)?;
+    m.add_function(wrap_pyfunction!(scene::load_scene, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

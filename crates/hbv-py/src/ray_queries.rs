@@ -1,10 +1,13 @@
-//! The ray and point queries that `hbv.BVH` and `hbv.Grid` share: arguments read and checked
-//! once, answered by any [`Accelerator`] / [`AllHits`] on all cores with the GIL released.
+//! The ray and point queries that `hbv.BVH`, `hbv.Grid` and `hbv.Scene` share: arguments read
+//! and checked once, answered by a [`RayTracer`] (a mesh's [`Accelerator`], or a scene) and a
+//! [`HitCounter`] on all cores with the GIL released.
 
-use hbv::geometry::Ray;
+use hbv::geometry::{Ray, Triangle};
 use hbv::proximity::{contains, contains_by_majority};
-use hbv::{Accelerator, AllHits};
-use numpy::{IntoPyArray, PyArray1};
+use hbv::query::Hit;
+use hbv::scene::SceneHit;
+use hbv::{Accelerator, AllHits, TriangleMesh};
+use numpy::{IntoPyArray, PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
@@ -26,7 +29,7 @@ pub struct RayArgs<'py> {
 
 /// The rays of a query as slices the worker threads read (no GIL needed).
 #[derive(Clone, Copy)]
-struct RayBatch<'a> {
+pub struct RayBatch<'a> {
     origins: FloatSlice<'a>,
     directions: FloatSlice<'a>,
     tmin: BoundSlice<'a>,
@@ -53,7 +56,7 @@ impl<'py> RayArgs<'py> {
         })
     }
 
-    fn batch(&self) -> RayBatch<'_> {
+    pub fn batch(&self) -> RayBatch<'_> {
         RayBatch {
             origins: self.origins.values(),
             directions: self.directions.values(),
@@ -65,8 +68,13 @@ impl<'py> RayArgs<'py> {
 }
 
 impl RayBatch<'_> {
+    /// The number of rays.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
     #[inline]
-    fn ray(&self, i: usize) -> Ray {
+    pub fn ray(&self, i: usize) -> Ray {
         Ray {
             origin: self.origins.row3(i),
             direction: self.directions.row3(i),
@@ -101,8 +109,15 @@ impl RayBatch<'_> {
 
     /// Every ray, on the calling thread: a copy (a few ns a ray) that a parallel iterator would
     /// make the calling thread wait for the pool's threads to wake for.
-    fn rays(&self) -> Vec<Ray> {
+    pub fn rays(&self) -> Vec<Ray> {
         (0..self.len).map(|i| self.ray(i)).collect()
+    }
+}
+
+impl<'a> RayBatch<'a> {
+    /// The origins as given (float32 or float64).
+    pub fn origins(&self) -> FloatSlice<'a> {
+        self.origins
     }
 }
 
@@ -142,11 +157,64 @@ fn set_bounds(
     }
 }
 
+/// What answers the closest- and any-hit queries of a batch: a mesh's [`Accelerator`]
+/// ([`MeshTracer`]), or a scene with its rays' masks (`scene_queries.rs`). Called with runs of
+/// at most [`GRAIN`] rays.
+pub trait RayTracer: Sync {
+    /// Whether the answers carry an `instance` column (a scene's do).
+    const INSTANCES: bool;
+
+    /// The closest hit of each of `rays`, rows `first..` of the batch, with its unit normal in
+    /// world space.
+    fn closest_into(&self, first: usize, rays: &[Ray], found: &mut [Option<SceneHit>]);
+
+    /// Whether anything lies along each of `rays`, rows `first..` of the batch.
+    fn occluded_into(&self, first: usize, rays: &[Ray], occluded: &mut [bool]);
+}
+
+/// A mesh's closest and any hits, traced by one of its layouts.
+pub struct MeshTracer<'a> {
+    pub accel: &'a dyn Accelerator,
+    pub mesh: &'a TriangleMesh,
+}
+
+impl RayTracer for MeshTracer<'_> {
+    const INSTANCES: bool = false;
+
+    fn closest_into(&self, _first: usize, rays: &[Ray], found: &mut [Option<SceneHit>]) {
+        let mut hits = [None::<Hit>; GRAIN];
+        let hits = &mut hits[..rays.len()];
+        self.accel.intersect_into(rays, hits);
+        for (found, hit) in found.iter_mut().zip(hits.iter()) {
+            *found = hit.map(|h| SceneHit {
+                t: h.t,
+                u: h.u,
+                v: h.v,
+                prim: h.prim,
+                instance: 0,
+                normal: unit_normal(&self.mesh.triangle(h.prim as usize)),
+            });
+        }
+    }
+
+    fn occluded_into(&self, _first: usize, rays: &[Ray], occluded: &mut [bool]) {
+        self.accel.occluded_into(rays, occluded);
+    }
+}
+
+/// The unit geometric normal `normalize(cross(p1 - p0, p2 - p0))`, in f64 rounded to f32, as
+/// docs/RAYS.md defines a hit's `normal` (a triangle that is hit is not degenerate).
+fn unit_normal(triangle: &Triangle) -> hbv::glam::Vec3 {
+    triangle.scaled_normal().normalize_or_zero().as_vec3()
+}
+
 /// Closest hits: a dict of arrays `hit` (bool), `t` (float32, inf on a miss), `prim` (int64,
-/// -1 on a miss), `u`, `v` (float32 barycentrics, 0 on a miss), as docs/RAYS.md.
-pub fn closest_hits<'py>(
+/// -1 on a miss), `u`, `v` (float32 barycentrics, 0 on a miss), for a scene `instance` (int64,
+/// -1 on a miss), and `normal` ((N, 3) float32 unit geometric normal in world space, 0 on a
+/// miss), as docs/RAYS.md.
+pub fn closest_hits<'py, T: RayTracer>(
     py: Python<'py>,
-    accel: &dyn Accelerator,
+    tracer: &T,
     args: &RayArgs<'py>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyDict>> {
@@ -158,9 +226,27 @@ pub fn closest_hits<'py>(
         OutputColumn::<i64>::new(n),
     );
     let (mut u, mut v) = (OutputColumn::<f32>::new(n), OutputColumn::<f32>::new(n));
-    let columns = (hit.rows(), (t.rows(), (prim.rows(), (u.rows(), v.rows()))));
+    let mut normal = OutputColumn::<[f32; 3]>::new(n);
+    let mut instance = T::INSTANCES.then(|| OutputColumn::<i64>::new(n));
+    let columns = (
+        hit.rows(),
+        (
+            t.rows(),
+            (
+                prim.rows(),
+                (
+                    u.rows(),
+                    (
+                        v.rows(),
+                        (normal.rows(), instance.as_mut().map(|c| c.rows())),
+                    ),
+                ),
+            ),
+        ),
+    );
     py.detach(|| {
-        fill_rows(threads, columns, |first, (hit, (t, (prim, (u, v))))| {
+        fill_rows(threads, columns, |first, columns| {
+            let (hit, (t, (prim, (u, (v, (normal, mut instance)))))) = columns;
             // In runs of GRAIN rays: the accelerator traces a run together (the wide layouts
             // interleave its rays).
             let mut rays = Vec::with_capacity(GRAIN);
@@ -169,27 +255,32 @@ pub fn closest_hits<'py>(
                 let end = (start + GRAIN).min(hit.len());
                 batch.rays_into(first + start..first + end, &mut rays);
                 let found = &mut found[..end - start];
-                accel.intersect_into(&rays, found);
+                tracer.closest_into(first + start, &rays, found);
                 for (k, found) in (start..end).zip(found.iter()) {
                     hit[k].write(found.is_some());
                     t[k].write(found.map_or(f32::INFINITY, |h| h.t));
                     prim[k].write(found.map_or(-1, |h| h.prim as i64));
                     u[k].write(found.map_or(0.0, |h| h.u));
                     v[k].write(found.map_or(0.0, |h| h.v));
+                    normal[k].write(found.map_or([0.0; 3], |h| h.normal.to_array()));
+                    if let Some(instance) = instance.as_deref_mut() {
+                        instance[k].write(found.map_or(-1, |h| h.instance as i64));
+                    }
                 }
             }
         })
     })?;
     // SAFETY: `fill_rows` called the closure on runs covering every row once, and it wrote
-    // every row of its run in each of the five columns (`fill_rows` returns only once every
-    // run is done; were a run to panic, nothing here would be reached).
-    let (hit, t, prim, u, v) = unsafe {
+    // every row of its run in each column (`fill_rows` returns only once every run is done;
+    // were a run to panic, nothing here would be reached).
+    let (hit, t, prim, u, v, normal) = unsafe {
         (
             hit.into_filled(),
             t.into_filled(),
             prim.into_filled(),
             u.into_filled(),
             v.into_filled(),
+            normal.into_filled(),
         )
     };
     let out = PyDict::new(py);
@@ -198,13 +289,20 @@ pub fn closest_hits<'py>(
     out.set_item("prim", prim.into_pyarray(py))?;
     out.set_item("u", u.into_pyarray(py))?;
     out.set_item("v", v.into_pyarray(py))?;
+    if let Some(instance) = instance {
+        // SAFETY: as above, the closure wrote every row of the instance column when it has one.
+        let instance = unsafe { instance.into_filled() };
+        out.set_item("instance", instance.into_pyarray(py))?;
+    }
+    let normal = normal.into_flattened().into_pyarray(py).reshape([n, 3])?;
+    out.set_item("normal", normal)?;
     Ok(out)
 }
 
 /// Any hit: a bool array, true where anything lies in [tmin, tmax] along the ray.
-pub fn any_hits<'py>(
+pub fn any_hits<'py, T: RayTracer>(
     py: Python<'py>,
-    accel: &dyn Accelerator,
+    tracer: &T,
     args: &RayArgs<'py>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<bool>>> {
@@ -216,7 +314,7 @@ pub fn any_hits<'py>(
             for (start, out) in (0..).step_by(GRAIN).zip(out.chunks_mut(GRAIN)) {
                 let from = first + start;
                 batch.rays_into(from..from + out.len(), &mut rays);
-                accel.occluded_into(&rays, out);
+                tracer.occluded_into(from, &rays, out);
             }
         })
     })?;
@@ -256,22 +354,40 @@ pub fn every_hit<'py, 's, A: AllHits + ?Sized + 's>(
     )
 }
 
+/// What counts the hits along one ray of a batch: a mesh's [`AllHits`] structure
+/// ([`MeshCounter`]), or a scene with its rays' masks (`scene_queries.rs`).
+pub trait HitCounter: Sync {
+    /// The number of hits along `ray`, row `row` of the batch; `hits` is scratch space that a
+    /// run of rays reuses.
+    fn count(&self, row: usize, ray: &Ray, hits: &mut Vec<Hit>) -> usize;
+}
+
+/// A mesh's hit counts: the length of its [`AllHits`] list.
+pub struct MeshCounter<'a, A: AllHits + ?Sized>(pub &'a A);
+
+impl<A: AllHits + ?Sized> HitCounter for MeshCounter<'_, A> {
+    fn count(&self, _row: usize, ray: &Ray, hits: &mut Vec<Hit>) -> usize {
+        self.0.all_hits(ray, hits);
+        hits.len()
+    }
+}
+
 /// The number of hits along each ray (int64): the length of its `intersect_all` list.
-pub fn hit_counts<'py, 's, A: AllHits + ?Sized + 's>(
+/// `counter` is called off the GIL (it may build the structure on first use).
+pub fn hit_counts<'py, C: HitCounter>(
     py: Python<'py>,
-    structure: impl FnOnce() -> &'s A + Send,
+    counter: impl FnOnce() -> C + Send,
     args: &RayArgs<'py>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<i64>>> {
     let batch = args.batch();
     let mut counts = vec![0i64; batch.len];
     py.detach(|| {
-        let structure = structure();
+        let counter = counter();
         fill_rows(threads, &mut counts[..], |first, out| {
             let mut hits = Vec::new();
             for (k, c) in out.iter_mut().enumerate() {
-                structure.all_hits(&batch.ray(first + k), &mut hits);
-                *c = hits.len() as i64;
+                *c = counter.count(first + k, &batch.ray(first + k), &mut hits) as i64;
             }
         })
     })?;

@@ -138,6 +138,23 @@ impl<T: Send> Rows for &mut [T] {
     }
 }
 
+/// A column only some queries have (a scene's `instance`): cut alongside the others when
+/// present. Its row count is not asked (it is the second of a pair).
+impl<R: Rows> Rows for Option<R> {
+    fn rows(&self) -> usize {
+        self.as_ref().map_or(0, Rows::rows)
+    }
+    fn split_at(self, row: usize) -> (Self, Self) {
+        match self {
+            Some(rows) => {
+                let (a, b) = rows.split_at(row);
+                (Some(a), Some(b))
+            }
+            None => (None, None),
+        }
+    }
+}
+
 impl<A: Rows, B: Rows> Rows for (A, B) {
     fn rows(&self) -> usize {
         self.0.rows()

@@ -7,13 +7,12 @@
 
 use glam::Vec3;
 use hbv::geometry::Ray;
-use hbv::Hit;
 
 use crate::material::Surface;
 use crate::optics::{fresnel_dielectric, reflect, refract};
 use crate::ray_kind::RayKind;
 use crate::sampler::PixelSampler;
-use crate::scene::Scene;
+use crate::scene::{Scene, SurfacePoint};
 use crate::tracer::{RayTally, SceneTracer};
 
 /// What the primary ray of a sample saw, for the depth, normal and primitive-id passes.
@@ -23,7 +22,8 @@ pub struct PrimaryHit {
     pub depth: f32,
     /// Shading normal, turned towards the camera.
     pub normal: Vec3,
-    pub prim: u32,
+    /// The face's id in the flattened scene's numbering ([`SurfacePoint::face`]).
+    pub face: u64,
 }
 
 /// The Whitted integrator of one scene, tracing through one [`SceneTracer`].
@@ -34,17 +34,6 @@ pub struct Whitted<'a> {
     /// hit point's coordinates: far above the watertight test's error (a few ulps), far below
     /// any feature of a scene.
     relative_offset: f32,
-}
-
-/// A hit turned into what shading needs.
-struct SurfacePoint {
-    position: Vec3,
-    /// Geometric normal on the side the ray came from.
-    geometric: Vec3,
-    /// Shading normal on the same side.
-    shading: Vec3,
-    /// Whether the ray hit the front side (the side of `(p1 − p0) × (p2 − p0)`).
-    front: bool,
 }
 
 impl<'a> Whitted<'a> {
@@ -66,13 +55,13 @@ impl<'a> Whitted<'a> {
         match self.tracer.intersect(ray, RayKind::Primary, tally) {
             None => (self.scene.settings.background, None),
             Some(hit) => {
-                let point = self.surface_point(ray, &hit);
+                let point = self.scene.surface(ray, &hit);
                 let seen = PrimaryHit {
                     depth: hit.t,
                     normal: point.shading,
-                    prim: hit.prim,
+                    face: point.face,
                 };
-                (self.shade(ray, &hit, &point, 0, sampler, tally), Some(seen))
+                (self.shade(ray, &point, 0, sampler, tally), Some(seen))
             }
         }
     }
@@ -89,27 +78,9 @@ impl<'a> Whitted<'a> {
         match self.tracer.intersect(ray, kind, tally) {
             None => self.scene.settings.background,
             Some(hit) => {
-                let point = self.surface_point(ray, &hit);
-                self.shade(ray, &hit, &point, depth, sampler, tally)
+                let point = self.scene.surface(ray, &hit);
+                self.shade(ray, &point, depth, sampler, tally)
             }
-        }
-    }
-
-    fn surface_point(&self, ray: &Ray, hit: &Hit) -> SurfacePoint {
-        let [a, b, c] = self.scene.mesh.indices()[hit.prim as usize];
-        let p = self.scene.mesh.positions();
-        let (p0, p1, p2) = (p[a as usize], p[b as usize], p[c as usize]);
-        // The barycentric point is closer to the surface than origin + t·direction.
-        let position = (1.0 - hit.u - hit.v) * p0 + hit.u * p1 + hit.v * p2;
-        let face = (p1 - p0).cross(p2 - p0).normalize();
-        let front = face.dot(ray.direction) < 0.0;
-        let side = if front { 1.0 } else { -1.0 };
-        let shading = self.scene.shading_normal(hit.prim, hit.u, hit.v, face);
-        SurfacePoint {
-            position,
-            geometric: face * side,
-            shading: shading * side,
-            front,
         }
     }
 
@@ -127,14 +98,12 @@ impl<'a> Whitted<'a> {
     fn shade(
         &self,
         ray: &Ray,
-        hit: &Hit,
         point: &SurfacePoint,
         depth: u32,
         sampler: &mut PixelSampler,
         tally: &mut RayTally,
     ) -> Vec3 {
-        let material =
-            &self.scene.materials[self.scene.triangle_material[hit.prim as usize] as usize];
+        let material = self.scene.material_of(point.instance);
         let wo = -ray.direction;
         let settings = &self.scene.settings;
         let mut radiance = if point.front {

@@ -1,11 +1,13 @@
 //! hbv-render: a Whitted-style ray tracer on hbv's accelerators.
 //!
 //! The pieces, in the order a frame flows through them:
-//! - [`scene`]: the TOML scene format, the built-in Cornell box, and [`Scene`]: every mesh of a
-//!   scene merged into one [`hbv::TriangleMesh`] with a material per triangle.
+//! - [`scene`]: the TOML scene format, the built-in Cornell box, and [`Scene`]: each mesh once,
+//!   placed by instances (a transform, a material each), traced as hbv's two-level
+//!   [`hbv::scene::Scene`] or flattened into one [`hbv::TriangleMesh`].
 //! - [`Camera`], [`Light`], [`Material`]: what the scene file describes.
-//! - [`SceneTracer`]: the two places where rays meet the accelerators, one for intersection rays
-//!   and one for shadow rays, counting rays (and optionally work and time) by [`RayKind`].
+//! - [`SceneTracer`]: the two places where rays meet the structures (the two-level scene, or
+//!   accelerators over the flattened scene: one for intersection rays, one for shadow rays),
+//!   counting rays (and optionally work and time) by [`RayKind`].
 //! - [`QueryCacheConfig`]: which ray kinds go through object caches (a shadow cache per light
 //!   and tile, a last-hit cache for primary rays), which never change the image.
 //! - [`integrator`]: Whitted's recursion (shadow rays, mirror reflection, Fresnel refraction).
@@ -21,11 +23,16 @@
 //! let mut scene = Scene::cornell_box();
 //! scene.settings.width = 16;
 //! scene.settings.height = 12;
-//! let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&scene.mesh);
-//! let bvh: Arc<dyn hbv::Accelerator> = Arc::new(Wide8Layout::new(&tree, &scene.mesh));
-//! let tracer = SceneTracer::new(bvh.clone(), bvh);
-//! let frame = render(&scene, &tracer, &RenderConfig::default());
+//! // The two-level scene: one BVH per mesh, a top level over the instances.
+//! let two_level = SceneTracer::two_level(Arc::new(scene.two_level(Default::default())));
+//! let frame = render(&scene, &two_level, &RenderConfig::default());
 //! assert_eq!(frame.film.radiance.len(), 16 * 12);
+//! // The flattened scene, for any accelerator, the object caches and the cost heatmaps.
+//! let mesh = scene.flat_mesh();
+//! let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(mesh);
+//! let bvh: Arc<dyn hbv::Accelerator> = Arc::new(Wide8Layout::new(&tree, mesh));
+//! let flat = render(&scene, &SceneTracer::new(bvh.clone(), bvh), &RenderConfig::default());
+//! assert_eq!(flat.film.radiance.len(), 16 * 12);
 //! ```
 
 pub mod camera;
@@ -52,5 +59,5 @@ pub use material::Material;
 pub use query_caches::QueryCacheConfig;
 pub use ray_kind::{RayKind, RayStats};
 pub use render::{render, Frame, RenderConfig};
-pub use scene::{RenderSettings, Scene, SceneError};
+pub use scene::{RenderSettings, Scene, SceneError, SceneInstance, SceneMesh};
 pub use tracer::SceneTracer;

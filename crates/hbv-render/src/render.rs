@@ -51,8 +51,8 @@ pub struct Frame {
 /// Sample `s` of pixel `(x, y)` draws its random numbers from [`PixelSampler`] seeded with
 /// `y · width + x` and runs entirely on one thread, and the film is assembled in pixel order, so
 /// the image does not depend on the number of threads or the order tiles finish in. Each tile
-/// gets fresh object caches ([`SceneTracer::tally`], built over `scene.mesh`, the mesh the
-/// tracer's accelerators must come from); caches change the work, never a hit. With one
+/// gets fresh object caches ([`SceneTracer::tally`], built over the flattened scene's mesh, the
+/// mesh a flat tracer's accelerators must come from); caches change the work, never a hit. With one
 /// sample per pixel the primary ray goes through the pixel's centre; with more, each sample is
 /// jittered uniformly inside the pixel.
 pub fn render(scene: &Scene, tracer: &SceneTracer, config: &RenderConfig) -> Frame {
@@ -71,7 +71,7 @@ pub fn render(scene: &Scene, tracer: &SceneTracer, config: &RenderConfig) -> Fra
     let done: Vec<(Vec<(usize, PixelValue)>, RayStats)> = tiles
         .par_iter()
         .map(|&(x0, y0)| {
-            let mut tally = tracer.tally(&scene.mesh, config.count_work, config.time_queries);
+            let mut tally = tracer.tally(scene, config.count_work, config.time_queries);
             let mut pixels = Vec::with_capacity((tile * tile) as usize);
             for y in y0..(y0 + tile).min(height) {
                 for x in x0..(x0 + tile).min(width) {
@@ -96,7 +96,7 @@ pub fn render(scene: &Scene, tracer: &SceneTracer, config: &RenderConfig) -> Fra
                         if let (0, Some(seen)) = (s, seen) {
                             value.depth = seen.depth;
                             value.normal = seen.normal;
-                            value.prim = seen.prim;
+                            value.prim = seen.face as u32;
                         }
                     }
                     value.radiance /= settings.spp as f32;

@@ -4,23 +4,41 @@
 //! [`SceneTracer::intersect`] and every shadow ray through [`SceneTracer::occluded`]. Each names
 //! its [`RayKind`], so a structure or cache per kind (a grid for primary rays, a shadow cache per
 //! light, ...) plugs in here and nowhere else.
+//!
+//! A tracer traces either the two-level scene ([`SceneTracer::two_level`]: hbv's
+//! [`hbv::scene::Scene`], one BVH per mesh and a top level over the instances) or the flattened
+//! scene ([`SceneTracer::new`]: any accelerator per ray kind over one world-space mesh, with the
+//! object caches and the counted queries). The two-level scene has neither caches nor counted
+//! queries: its rays are counted and timed, their work is not.
 
 use std::sync::Arc;
 use std::time::Instant;
 
 use hbv::geometry::Ray;
-use hbv::{Accelerator, Hit, TraversalStats, TriangleMesh};
+use hbv::scene::SceneRay;
+use hbv::{Accelerator, TraversalStats};
 
 use crate::query_caches::{QueryCacheConfig, QueryCaches};
 use crate::ray_kind::{RayKind, RayStats};
+use crate::scene::{HitFace, Scene, SurfaceHit};
 
-/// The accelerators a frame is traced with: one for intersection rays, one for shadow rays (they
-/// may be the same structure), and which ray kinds go through object caches.
+/// The structures a frame is traced with, and which ray kinds go through object caches.
 #[derive(Clone)]
 pub struct SceneTracer {
-    intersection: Arc<dyn Accelerator>,
-    shadow: Arc<dyn Accelerator>,
+    structures: Structures,
     caches: QueryCacheConfig,
+}
+
+#[derive(Clone)]
+enum Structures {
+    /// Over the flattened scene ([`Scene::flat`]): one accelerator for intersection rays, one
+    /// for shadow rays (they may be the same structure).
+    Flat {
+        intersection: Arc<dyn Accelerator>,
+        shadow: Arc<dyn Accelerator>,
+    },
+    /// The two-level scene ([`Scene::two_level`]) for every ray.
+    TwoLevel(Arc<hbv::scene::Scene>),
 }
 
 /// What one render thread records about its queries: totals per ray kind, and the work of the
@@ -80,20 +98,41 @@ impl RayTally<'_> {
 }
 
 impl SceneTracer {
-    /// Traces intersection rays with `intersection` and shadow rays with `shadow`.
-    /// Traces intersection rays with `intersection` and shadow rays with `shadow`, through the
+    /// Traces the flattened scene ([`Scene::flat`]): intersection rays with `intersection` and
+    /// shadow rays with `shadow`, both built over the flattened scene's mesh, through the
     /// default caches ([`QueryCacheConfig::default`]) when tallies come from
     /// [`SceneTracer::tally`].
     pub fn new(intersection: Arc<dyn Accelerator>, shadow: Arc<dyn Accelerator>) -> Self {
         SceneTracer {
-            intersection,
-            shadow,
+            structures: Structures::Flat {
+                intersection,
+                shadow,
+            },
             caches: QueryCacheConfig::default(),
         }
     }
 
-    /// The same tracer with other caches.
+    /// Traces every ray with `scene`, the two-level form of the scene rendered
+    /// ([`Scene::two_level`]). No caches: they are made for one mesh.
+    pub fn two_level(scene: Arc<hbv::scene::Scene>) -> Self {
+        SceneTracer {
+            structures: Structures::TwoLevel(scene),
+            caches: QueryCacheConfig::none(),
+        }
+    }
+
+    /// Whether this tracer traces the two-level scene.
+    pub fn is_two_level(&self) -> bool {
+        matches!(self.structures, Structures::TwoLevel(_))
+    }
+
+    /// The same tracer with other caches (ignored by a two-level tracer, which has none).
     pub fn with_caches(self, caches: QueryCacheConfig) -> Self {
+        let caches = if self.is_two_level() {
+            QueryCacheConfig::none()
+        } else {
+            caches
+        };
         SceneTracer { caches, ..self }
     }
 
@@ -102,39 +141,68 @@ impl SceneTracer {
         self.caches
     }
 
-    /// A tally for one render thread, holding that thread's caches (a shadow cache per light, a
-    /// last-hit cache per cached intersection ray kind) over the tracer's accelerators. `mesh`
-    /// is the mesh the accelerators were built from: the caches test its triangles.
+    /// A tally for one render thread of `scene`, holding that thread's caches (a shadow cache
+    /// per light, a last-hit cache per cached intersection ray kind) over the tracer's
+    /// accelerators, which must have been built over `scene`'s flattened mesh: the caches test
+    /// its triangles. A two-level tracer's tally has no caches and counts no work.
     pub fn tally<'a>(
         &'a self,
-        mesh: &'a TriangleMesh,
+        scene: &'a Scene,
         count_work: bool,
         time_queries: bool,
     ) -> RayTally<'a> {
-        RayTally {
-            caches: Some(QueryCaches::new(
-                self.caches,
-                mesh,
-                self.intersection.as_ref(),
-                self.shadow.as_ref(),
-            )),
-            ..RayTally::new(count_work, time_queries)
+        match &self.structures {
+            Structures::Flat {
+                intersection,
+                shadow,
+            } => RayTally {
+                caches: Some(QueryCaches::new(
+                    self.caches,
+                    scene.flat_mesh(),
+                    intersection.as_ref(),
+                    shadow.as_ref(),
+                )),
+                ..RayTally::new(count_work, time_queries)
+            },
+            Structures::TwoLevel(_) => RayTally::new(false, time_queries),
         }
     }
 
     /// The closest hit of a primary, reflected or transmitted ray, through the tally's last-hit
     /// cache for `kind` if it has one. The one intersection query of the renderer.
     #[inline]
-    pub fn intersect(&self, ray: &Ray, kind: RayKind, tally: &mut RayTally) -> Option<Hit> {
+    pub fn intersect(&self, ray: &Ray, kind: RayKind, tally: &mut RayTally) -> Option<SurfaceHit> {
         debug_assert!(!matches!(kind, RayKind::Shadow { .. }));
         let start = tally.time_queries.then(Instant::now);
         let mut work = TraversalStats::default();
-        let cache = tally.caches.as_mut().and_then(|c| c.last_hit(kind));
-        let hit = match (cache, tally.count_work) {
-            (Some(cache), true) => cache.intersect_counted(ray, &mut work),
-            (Some(cache), false) => cache.intersect(ray),
-            (None, true) => self.intersection.intersect_counted(ray, &mut work),
-            (None, false) => self.intersection.intersect(ray),
+        let hit = match &self.structures {
+            Structures::Flat { intersection, .. } => {
+                let cache = tally.caches.as_mut().and_then(|c| c.last_hit(kind));
+                let hit = match (cache, tally.count_work) {
+                    (Some(cache), true) => cache.intersect_counted(ray, &mut work),
+                    (Some(cache), false) => cache.intersect(ray),
+                    (None, true) => intersection.intersect_counted(ray, &mut work),
+                    (None, false) => intersection.intersect(ray),
+                };
+                hit.map(|h| SurfaceHit {
+                    t: h.t,
+                    u: h.u,
+                    v: h.v,
+                    face: HitFace::Flat(h.prim),
+                })
+            }
+            Structures::TwoLevel(scene) => {
+                scene.intersect(&SceneRay::new(*ray)).map(|h| SurfaceHit {
+                    t: h.t,
+                    u: h.u,
+                    v: h.v,
+                    face: HitFace::Instanced {
+                        instance: h.instance,
+                        prim: h.prim,
+                        normal: h.normal,
+                    },
+                })
+            }
         };
         tally.record(kind, work, start);
         hit
@@ -148,12 +216,17 @@ impl SceneTracer {
         let kind = RayKind::Shadow { light };
         let start = tally.time_queries.then(Instant::now);
         let mut work = TraversalStats::default();
-        let cache = tally.caches.as_mut().and_then(|c| c.shadow(light, sample));
-        let blocked = match (cache, tally.count_work) {
-            (Some(cache), true) => cache.occluded_counted(ray, &mut work),
-            (Some(cache), false) => cache.occluded(ray),
-            (None, true) => self.shadow.occluded_counted(ray, &mut work),
-            (None, false) => self.shadow.occluded(ray),
+        let blocked = match &self.structures {
+            Structures::Flat { shadow, .. } => {
+                let cache = tally.caches.as_mut().and_then(|c| c.shadow(light, sample));
+                match (cache, tally.count_work) {
+                    (Some(cache), true) => cache.occluded_counted(ray, &mut work),
+                    (Some(cache), false) => cache.occluded(ray),
+                    (None, true) => shadow.occluded_counted(ray, &mut work),
+                    (None, false) => shadow.occluded(ray),
+                }
+            }
+            Structures::TwoLevel(scene) => scene.occluded(&SceneRay::new(*ray)),
         };
         tally.record(kind, work, start);
         tally.stats.shadow_blocked += blocked as u64;

@@ -85,7 +85,7 @@ fn gltf_scene_brings_its_camera_light_and_materials() {
     let path = dir.path().join("quad.gltf");
     std::fs::write(&path, quad_gltf()).unwrap();
     let mut scene = load_scene(&path).unwrap();
-    assert_eq!(scene.mesh.triangle_count(), 2);
+    assert_eq!(scene.triangle_count(), 2);
     assert_eq!(scene.camera.position, glam::Vec3::new(0.0, 0.0, 3.0));
     assert!((scene.camera.fov_y_degrees - 0.8f32.to_degrees()).abs() < 1e-4);
     assert_eq!(
@@ -95,7 +95,7 @@ fn gltf_scene_brings_its_camera_light_and_materials() {
             intensity: glam::Vec3::new(4.0, 2.0, 1.0),
         }]
     );
-    let material = scene.materials[scene.triangle_material[0] as usize];
+    let material = scene.materials[scene.instances[0].material as usize];
     assert!(
         matches!(material.surface, Surface::Phong { .. }),
         "{material:?}"
@@ -107,7 +107,7 @@ fn gltf_scene_brings_its_camera_light_and_materials() {
 
     scene.settings.width = 8;
     scene.settings.height = 8;
-    let bvh: Arc<dyn hbv::Accelerator> = Arc::new(BruteForce::new(&scene.mesh));
+    let bvh: Arc<dyn hbv::Accelerator> = Arc::new(BruteForce::new(scene.flat_mesh()));
     let frame = render(
         &scene,
         &SceneTracer::new(bvh.clone(), bvh),

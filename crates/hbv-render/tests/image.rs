@@ -47,8 +47,8 @@ fn render_traced(scene: &Scene, tracer: &SceneTracer, threads: usize) -> Frame {
 }
 
 fn wide8(scene: &Scene) -> Arc<dyn Accelerator> {
-    let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&scene.mesh);
-    Arc::new(Wide8Layout::new(&tree, &scene.mesh))
+    let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(scene.flat_mesh());
+    Arc::new(Wide8Layout::new(&tree, scene.flat_mesh()))
 }
 
 fn reference_path() -> PathBuf {
@@ -92,7 +92,7 @@ fn cornell_box_matches_the_reference_image() {
 fn image_is_identical_for_every_layout_builder_and_thread_count() {
     let scene = small_cornell_box();
     let expected = render_with(&scene, wide8(&scene), 1).film.radiance;
-    let mesh: &TriangleMesh = &scene.mesh;
+    let mesh: &TriangleMesh = scene.flat_mesh();
     let trees: Vec<(&str, BuildTree)> = vec![
         (
             "insertion",
@@ -146,9 +146,10 @@ fn image_is_identical_for_grid_or_bvh_per_ray_kind_with_caches_on_or_off() {
         &SceneTracer::new(bvh.clone(), bvh.clone()).with_caches(QueryCacheConfig::none()),
         1,
     );
-    let grid: Arc<dyn Accelerator> = Arc::new(UniformGrid::new(&scene.mesh, GridConfig::default()));
+    let grid: Arc<dyn Accelerator> =
+        Arc::new(UniformGrid::new(scene.flat_mesh(), GridConfig::default()));
     let unboxed: Arc<dyn Accelerator> = Arc::new(UniformGrid::new(
-        &scene.mesh,
+        scene.flat_mesh(),
         GridConfig {
             mailbox: false,
             ..GridConfig::default()

@@ -97,13 +97,13 @@ fn a_good_scene_loads_with_everything_it_names() {
     let (_dir, path) = scene_dir(GOOD);
     let scene = load_scene(&path).unwrap();
     // Two quads of two triangles, and the area light's visible panel.
-    assert_eq!(scene.mesh.triangle_count(), 6);
+    assert_eq!(scene.triangle_count(), 6);
     assert_eq!(scene.settings.width, 32);
     assert_eq!(scene.settings.spp, 2);
     assert_eq!(scene.lights.len(), 2);
     assert!(matches!(scene.lights[0], Light::Rect { samples: 9, .. }));
     // Placement: the first quad is scaled by 2 and moved back.
-    let bounds = scene.mesh.bounds();
+    let bounds = scene.bounds();
     assert_eq!(bounds.min.z, -1.0);
     assert!((bounds.max.y - 2.0).abs() < 1e-6);
 }
@@ -225,7 +225,7 @@ fn the_example_scenes_load_when_shared_scenes_exist() {
     }
     for name in ["bunny.toml", "dragon.toml"] {
         let scene = load_scene(examples.join(name)).unwrap_or_else(|e| panic!("{e}"));
-        assert!(scene.mesh.triangle_count() > 10_000, "{name}");
+        assert!(scene.triangle_count() > 10_000, "{name}");
         assert!(!scene.lights.is_empty(), "{name}");
     }
 }

@@ -73,7 +73,7 @@ fn mask() -> impl Strategy<Value = u32> {
 fn plan() -> impl Strategy<Value = Plan> {
     let vec3 = |r: f64| (-r..r, -r..r, -r..r).prop_map(|(x, y, z)| DVec3::new(x, y, z));
     let instance = (
-        0usize..4,
+        0usize..5,
         (signed_scale(), signed_scale(), signed_scale()).prop_map(|(x, y, z)| DVec3::new(x, y, z)),
         vec3(3.2),
         vec3(6.0),
@@ -120,16 +120,53 @@ fn meshes() -> Vec<TriangleMesh> {
     ]
 }
 
+/// A float64 mesh far from the origin (stored relative to its centre): a cube of 1 m at UTM
+/// coordinates.
+fn far_cube() -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let corner = DVec3::new(500_000.25, 5_000_000.75, 12.5);
+    let positions = (0..8)
+        .map(|k| corner + DVec3::new((k & 1) as f64, ((k >> 1) & 1) as f64, (k >> 2) as f64))
+        .collect();
+    let faces = [
+        [0, 2, 1],
+        [1, 2, 3],
+        [4, 5, 6],
+        [5, 7, 6],
+        [0, 1, 4],
+        [1, 5, 4],
+        [2, 6, 3],
+        [3, 6, 7],
+        [0, 4, 2],
+        [2, 4, 6],
+        [1, 3, 5],
+        [3, 7, 5],
+    ];
+    (positions, faces.to_vec())
+}
+
+/// [`placement`] of mesh `mesh` of [`make_scene`]: the far cube (mesh 4) is first moved from
+/// its UTM corner to the origin, so that its instances lie among the others.
+fn placement_of(mesh: usize, scale: DVec3, angles: DVec3, offset: DVec3) -> InstanceTransform {
+    let placed = placement(scale, angles, offset);
+    if mesh != 4 {
+        return placed;
+    }
+    let home = DAffine3::from_translation(-far_cube().0[0]);
+    InstanceTransform::new(placed.affine() * home).unwrap()
+}
+
 /// The scene `plan` describes, with every kind of state an instance can be in when saved.
 fn make_scene(plan: &Plan, structure: SceneStructure) -> Scene {
     let mut scene = Scene::with_structure(structure);
-    let ids: Vec<MeshId> = meshes().into_iter().map(|m| scene.add_mesh(m)).collect();
+    let mut ids: Vec<MeshId> = meshes().into_iter().map(|m| scene.add_mesh(m)).collect();
+    let (positions, faces) = far_cube();
+    ids.push(scene.add_mesh_f64(&positions, &faces).unwrap());
     let count = plan.instances.len();
     for (k, &(mesh, scale, angles, offset, mask)) in plan.instances.iter().enumerate() {
         if k == count - plan.late {
             scene.build();
         }
-        let t = placement(scale, angles, offset + plan.far);
+        let t = placement_of(mesh, scale, angles, offset + plan.far);
         scene.add_instance(ids[mesh], t, mask).unwrap();
     }
     if plan.late == 0 {
@@ -140,8 +177,8 @@ fn make_scene(plan: &Plan, structure: SceneStructure) -> Scene {
         let _ = scene.remove_instance(InstanceId((k % count) as u32));
     }
     for &(k, shift) in &plan.moved {
-        let (_, scale, angles, offset, _) = plan.instances[k % count];
-        let t = placement(scale, angles, offset + shift + plan.far);
+        let (mesh, scale, angles, offset, _) = plan.instances[k % count];
+        let t = placement_of(mesh, scale, angles, offset + shift + plan.far);
         let _ = scene.set_transform(InstanceId((k % count) as u32), t);
     }
     for &(k, mask) in &plan.remasked {
@@ -217,6 +254,17 @@ proptest! {
         if !plan.breathe {
             prop_assert!(opened.to_hbv_bytes() == bytes);
         }
+        // Instances moved after the open are placed as in the saved scene (a float64 mesh's
+        // origin was saved with it).
+        let mut moved = saved.clone();
+        let mut moved_opened = opened.clone();
+        for id in 0..saved.instance_count() as u32 {
+            let t = placement(DVec3::ONE, DVec3::ZERO, plan.far + DVec3::X * f64::from(id));
+            if moved.set_transform(InstanceId(id), t).is_ok() {
+                moved_opened.set_transform(InstanceId(id), t).unwrap();
+            }
+        }
+        assert_same_scene(&moved, &moved_opened, &rays);
         // The opened scene lives on as the saved one does: ids continue after the holes.
         let next = opened
             .add_instance(MeshId(0), InstanceTransform::IDENTITY, 1)
@@ -413,9 +461,10 @@ fn mesh_files_and_scene_files_are_told_apart() {
     );
 }
 
-/// Offsets in `sample()`'s scene file.
+/// Offsets in `sample()`'s scene file (2 meshes, 3 instances).
 const RECORDS: usize = 64;
-const INSTANCES: usize = RECORDS + 32;
+const ORIGINS: usize = RECORDS + 32;
+const INSTANCES: usize = ORIGINS + 2 * 24;
 const MESHES: usize = INSTANCES + 3 * 112;
 
 /// Rewrites the header's CRC-32 after a deliberate change to it.
@@ -456,6 +505,7 @@ fn truncation_anywhere_names_the_part_it_ends_in() {
         (4, "not an hbv BVH file"),
         (63, "truncated: it ends in the header"),
         (64, "ends in the structure"),
+        (INSTANCES - 1, "ends in the origins"),
         (INSTANCES + 111, "ends in the instances"),
         (MESHES + 100, "ends in the meshes"),
         (
@@ -528,14 +578,11 @@ fn sizes_that_lie_are_caught_before_anything_is_allocated() {
     };
     lie(32, 1 << 40, "ends in the instances");
     lie(32, u64::MAX / 8, "impossible size for the instances");
-    lie(24, 1 << 40, "ends in the meshes");
-    lie(24, u64::MAX, "impossible size for the meshes");
-    lie(
-        24,
-        1,
-        "instance 1: mesh 1 is out of range (the scene has 1)",
-    );
-    lie(24, 3, "mesh 2: not an hbv BVH file");
+    lie(24, 1 << 40, "ends in the origins");
+    lie(24, u64::MAX, "impossible size for the origins");
+    lie(24, 100, "ends in the meshes");
+    // The record section then ends elsewhere.
+    lie(24, 1, "the record section is corrupted");
     lie(40, 1, "header: reserved bytes (20..24, 40..56) are not 0");
 }
 
@@ -576,6 +623,11 @@ fn well_sealed_records_that_lie_are_refused() {
         RECORDS + 4,
         &9u32.to_le_bytes(),
         "structure: unknown layout code 9",
+    );
+    edit(
+        ORIGINS + 24,
+        &f64::INFINITY.to_le_bytes(),
+        "mesh 1: its origin [inf, 0.0, 0.0] is not finite",
     );
     edit(
         RECORDS,

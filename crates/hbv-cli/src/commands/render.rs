@@ -21,6 +21,7 @@ use super::build_args::{thread_pool, AccelName, BuildArgs};
 use super::name_values::layout_kind;
 use hbv::bvh::build::BuilderKind;
 use hbv::bvh::layout::{LayoutKind, LayoutOptions};
+use hbv::scene::SceneStructure;
 
 /// Most pixels of an image (8192 × 8192): the film's passes take 40 bytes a pixel.
 const MAX_PIXELS: u64 = 1 << 26;
@@ -50,6 +51,21 @@ impl PassName {
             PassName::Triangles => Pass::Triangles,
         }
     }
+}
+
+/// How the scene's instances are traced.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum Instancing {
+    /// Two-level when some mesh is placed more than once, flat otherwise, and flat whenever the
+    /// run asks for what only the flat scene gives (a grid, the nodes or triangles heatmap, a
+    /// cache diagnostic).
+    Auto,
+    /// hbv's two-level scene: each mesh's BVH built once (--builder, --layout), a top level
+    /// over the instances. No object caches and no counted work (tests per ray, heatmaps).
+    TwoLevel,
+    /// Every instance's triangles copied into one world-space mesh, traced by --primary and
+    /// --shadow with the object caches and the counted queries.
+    Flat,
 }
 
 #[derive(Args)]
@@ -85,10 +101,13 @@ pub struct RenderArgs {
     pub layout: LayoutKind,
     #[command(flatten)]
     pub build: BuildArgs,
-    /// Structure for intersection rays (primary, reflected, transmitted).
+    /// How the scene's instances are traced.
+    #[arg(long, value_enum, default_value_t = Instancing::Auto)]
+    pub instancing: Instancing,
+    /// Structure for intersection rays (primary, reflected, transmitted) of a flat scene.
     #[arg(long, value_enum, default_value_t = AccelName::Bvh)]
     pub primary: AccelName,
-    /// Structure for shadow rays.
+    /// Structure for shadow rays of a flat scene.
     #[arg(long, value_enum, default_value_t = AccelName::Bvh)]
     pub shadow: AccelName,
     /// No object caches (by default: a shadow cache per light and tile, a last-hit cache for
@@ -178,58 +197,95 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let load_seconds = start.elapsed().as_secs_f64();
 
     let build = args.build.or_builder(BuilderKind::BinnedSah);
-    let uses = |accel| args.primary == accel || args.shadow == accel;
-    let mut build_seconds = 0.0;
-    let bvh = uses(AccelName::Bvh).then(|| {
-        let (tree, seconds) = pool.install(|| build.build(&scene.mesh));
-        let start = Instant::now();
-        let laid_out: Arc<dyn Accelerator> = Arc::new(args.layout.lay_out(
-            &tree,
-            &scene.mesh,
-            &LayoutOptions::default(),
-        ));
-        build_seconds += seconds + start.elapsed().as_secs_f64();
-        let described = format!("{:?} over {}", args.layout, build.describe()).to_lowercase();
-        (laid_out, described)
-    });
-    let grid = uses(AccelName::Grid).then(|| {
-        let start = Instant::now();
-        let grid = pool.install(|| UniformGrid::new(&scene.mesh, GridConfig::default()));
-        build_seconds += start.elapsed().as_secs_f64();
-        let r = grid.shape().map_or([0; 3], |s| s.resolution);
-        let described = format!(
-            "uniform grid {}×{}×{} (λ = {}, mailboxes)",
-            r[0],
-            r[1],
-            r[2],
-            grid.config().lambda
-        );
-        (Arc::new(grid) as Arc<dyn Accelerator>, described)
-    });
-    let chosen = |accel| match accel {
-        AccelName::Bvh => bvh.clone(),
-        AccelName::Grid => grid.clone(),
-    };
-    let (primary, primary_name) = chosen(args.primary).expect("built above");
-    let (shadow, shadow_name) = chosen(args.shadow).expect("built above");
-    let caches = if args.no_cache {
-        QueryCacheConfig::none()
-    } else {
-        QueryCacheConfig {
-            secondary: args.cache_secondary,
-            shadow_per_sample: args.shadow_cache_per_sample,
-            ..QueryCacheConfig::default()
+    let only_flat = flat_only_request(args, &passes);
+    let two_level = match args.instancing {
+        Instancing::Flat => false,
+        Instancing::TwoLevel => {
+            if let Some(request) = only_flat {
+                bail!("{request} needs --instancing flat: the two-level scene has no object caches and does not count its work");
+            }
+            true
         }
+        Instancing::Auto => only_flat.is_none() && scene.shares_meshes(),
     };
-    let tracer = SceneTracer::new(primary, shadow).with_caches(caches);
-    let structure = if args.primary == args.shadow {
-        primary_name
+    let mut build_seconds = 0.0;
+    let (tracer, structure, caches) = if two_level {
+        let start = Instant::now();
+        let structure = SceneStructure {
+            builder: build.builder_name(),
+            builder_options: build.builder_options(),
+            layout: args.layout,
+            layout_options: LayoutOptions::default(),
+        };
+        let instanced = pool.install(|| scene.two_level(structure));
+        build_seconds += start.elapsed().as_secs_f64();
+        let described = format!(
+            "two-level scene: {} meshes ({:?} over {}), {} instances under a top-level bvh",
+            scene.meshes.len(),
+            args.layout,
+            build.describe(),
+            scene.instances.len()
+        )
+        .to_lowercase();
+        let tracer = SceneTracer::two_level(Arc::new(instanced));
+        (tracer, described, QueryCacheConfig::none())
     } else {
-        format!("{primary_name} for intersection rays, {shadow_name} for shadow rays")
+        let start = Instant::now();
+        let mesh = &pool
+            .install(|| scene.flat())
+            .map_err(|e| anyhow::anyhow!(e))?
+            .mesh;
+        build_seconds += start.elapsed().as_secs_f64();
+        let uses = |accel| args.primary == accel || args.shadow == accel;
+        let bvh = uses(AccelName::Bvh).then(|| {
+            let (tree, seconds) = pool.install(|| build.build(mesh));
+            let start = Instant::now();
+            let laid_out: Arc<dyn Accelerator> =
+                Arc::new(args.layout.lay_out(&tree, mesh, &LayoutOptions::default()));
+            build_seconds += seconds + start.elapsed().as_secs_f64();
+            let described = format!("{:?} over {}", args.layout, build.describe()).to_lowercase();
+            (laid_out, described)
+        });
+        let grid = uses(AccelName::Grid).then(|| {
+            let start = Instant::now();
+            let grid = pool.install(|| UniformGrid::new(mesh, GridConfig::default()));
+            build_seconds += start.elapsed().as_secs_f64();
+            let r = grid.shape().map_or([0; 3], |s| s.resolution);
+            let described = format!(
+                "uniform grid {}×{}×{} (λ = {}, mailboxes)",
+                r[0],
+                r[1],
+                r[2],
+                grid.config().lambda
+            );
+            (Arc::new(grid) as Arc<dyn Accelerator>, described)
+        });
+        let chosen = |accel| match accel {
+            AccelName::Bvh => bvh.clone(),
+            AccelName::Grid => grid.clone(),
+        };
+        let (primary, primary_name) = chosen(args.primary).expect("built above");
+        let (shadow, shadow_name) = chosen(args.shadow).expect("built above");
+        let caches = if args.no_cache {
+            QueryCacheConfig::none()
+        } else {
+            QueryCacheConfig {
+                secondary: args.cache_secondary,
+                shadow_per_sample: args.shadow_cache_per_sample,
+                ..QueryCacheConfig::default()
+            }
+        };
+        let tracer = SceneTracer::new(primary, shadow).with_caches(caches);
+        let structure = if args.primary == args.shadow {
+            primary_name
+        } else {
+            format!("{primary_name} for intersection rays, {shadow_name} for shadow rays")
+        };
+        (tracer, structure, caches)
     };
 
     let config = RenderConfig {
-        count_work: !args.no_work_count,
+        count_work: !args.no_work_count && !two_level,
         time_queries: args.time_rays,
         quiet: args.quiet || args.json,
         ..RenderConfig::default()
@@ -270,6 +326,20 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         report.print();
     }
     Ok(())
+}
+
+/// What this run asks for that only the flat scene gives, if anything: a grid, a heatmap of
+/// counted work, a cache diagnostic.
+fn flat_only_request(args: &RenderArgs, passes: &[Pass]) -> Option<&'static str> {
+    if args.primary == AccelName::Grid || args.shadow == AccelName::Grid {
+        Some("the uniform grid (--primary/--shadow grid)")
+    } else if passes.iter().any(|p| p.needs_work_counted()) {
+        Some("the nodes and triangles heatmaps")
+    } else if args.cache_secondary || args.shadow_cache_per_sample {
+        Some("a cache diagnostic (--cache-secondary, --shadow-cache-per-sample)")
+    } else {
+        None
+    }
 }
 
 /// Every file this run writes, with the pass it holds (`None`: the OpenEXR file).
@@ -345,7 +415,10 @@ impl Report<'_> {
         let s = &self.scene.settings;
         json!({
             "scene": self.scene_name,
-            "triangles": self.scene.mesh.triangle_count(),
+            "triangles": self.scene.triangle_count(),
+            "triangles_stored": self.scene.stored_triangle_count(),
+            "meshes": self.scene.meshes.len(),
+            "instances": self.scene.instances.len(),
             "lights": self.scene.lights.len(),
             "width": s.width,
             "height": s.height,
@@ -376,9 +449,11 @@ impl Report<'_> {
         let st = &self.frame.stats;
         let s = &self.scene.settings;
         println!(
-            "scene      {} ({} triangles, {} lights)",
+            "scene      {} ({} triangles in {} instances of {} meshes, {} lights)",
             self.scene_name,
-            self.scene.mesh.triangle_count(),
+            self.scene.triangle_count(),
+            self.scene.instances.len(),
+            self.scene.meshes.len(),
             self.scene.lights.len()
         );
         println!(

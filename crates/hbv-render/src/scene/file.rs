@@ -13,6 +13,7 @@ use hbv::{MeshError, TriangleMesh};
 use serde::Deserialize;
 use toml::Spanned;
 
+use super::instance_entry::InstanceEntry;
 use super::{RenderSettings, Scene, SceneAssembly, SceneError, Transform};
 use crate::camera::Camera;
 use crate::light::Light;
@@ -25,12 +26,12 @@ const MAX_SPP: i64 = 1 << 16;
 const MAX_LIGHT_SAMPLES: i64 = 1 << 12;
 const MAX_DEPTH: i64 = 64;
 
-type V3 = Spanned<Triple>;
+pub(super) type V3 = Spanned<Triple>;
 
 /// Three numbers, exactly (serde's `[f32; 3]` stops reading after three and lets a fourth pass
 /// unnoticed).
 #[derive(Clone, Copy)]
-struct Triple([f32; 3]);
+pub(super) struct Triple(pub(super) [f32; 3]);
 
 impl<'de> Deserialize<'de> for Triple {
     fn deserialize<D: serde::Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
@@ -53,6 +54,8 @@ struct SceneFile {
     mesh: Vec<Spanned<MeshEntry>>,
     #[serde(default)]
     light: Vec<Spanned<LightEntry>>,
+    #[serde(default)]
+    instance: Vec<Spanned<InstanceEntry>>,
 }
 
 #[derive(Deserialize, Default)]
@@ -89,18 +92,36 @@ struct MaterialEntry {
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
-struct MeshEntry {
+pub(super) struct MeshEntry {
     file: Spanned<String>,
-    name: Option<String>,
+    pub(super) name: Option<String>,
     material: Option<Spanned<String>>,
     translate: Option<V3>,
     rotate: Option<V3>,
     scale: Option<Spanned<Scale>>,
     smooth: Option<bool>,
+    place: Option<bool>,
+}
+
+impl MeshEntry {
+    /// The name `[[instance]]` tables use for it: `name`, else `file` as written.
+    pub(super) fn name(&self) -> &str {
+        self.name.as_deref().unwrap_or(self.file.get_ref())
+    }
+}
+
+/// What `[[instance]]` tables need of a `[[mesh]]` they place.
+pub(super) struct PlacedMesh {
+    /// The scene's mesh (files named twice are loaded once).
+    pub(super) id: u32,
+    pub(super) material: u32,
+    pub(super) smooth: bool,
+    /// The `[[mesh]]`'s own placement, applied before an instance's.
+    pub(super) transform: Transform,
 }
 
 /// `scale = k` or `scale = [x, y, z]`.
-enum Scale {
+pub(super) enum Scale {
     Uniform(f32),
     PerAxis(Triple),
 }
@@ -240,13 +261,13 @@ pub fn parse_scene(
 }
 
 /// The file being read, for error messages.
-struct Context<'a> {
+pub(super) struct Context<'a> {
     file: PathBuf,
     source: &'a str,
 }
 
 impl Context<'_> {
-    fn line_of(&self, offset: usize) -> usize {
+    pub(super) fn line_of(&self, offset: usize) -> usize {
         let end = offset.min(self.source.len());
         self.source.as_bytes()[..end]
             .iter()
@@ -255,7 +276,12 @@ impl Context<'_> {
             + 1
     }
 
-    fn error_at(&self, span: &Range<usize>, key: &str, reason: impl Into<String>) -> SceneError {
+    pub(super) fn error_at(
+        &self,
+        span: &Range<usize>,
+        key: &str,
+        reason: impl Into<String>,
+    ) -> SceneError {
         SceneError::Invalid {
             file: self.file.clone(),
             line: self.line_of(span.start),
@@ -338,59 +364,73 @@ impl Context<'_> {
             }
             lights.push(light);
         }
+        let mut loaded: BTreeMap<&str, u32> = BTreeMap::new();
+        let mut placed_meshes = Vec::with_capacity(file.mesh.len());
         for (i, entry) in file.mesh.iter().enumerate() {
             let mesh_entry = entry.get_ref();
             let material = match &mesh_entry.material {
-                Some(name) => *material_index.get(name.get_ref()).ok_or_else(|| {
-                    let known: Vec<&str> = material_index.keys().map(String::as_str).collect();
-                    self.error_at(
-                        &name.span(),
-                        &format!("mesh[{i}].material"),
-                        format!(
-                            "no material named {:?} (the scene defines: {})",
-                            name.get_ref(),
-                            if known.is_empty() {
-                                "none".into()
-                            } else {
-                                known.join(", ")
-                            }
-                        ),
-                    )
-                })?,
+                Some(name) => self.material_named(
+                    name.get_ref(),
+                    &name.span(),
+                    &format!("mesh[{i}].material"),
+                    &material_index,
+                )?,
                 None => {
                     let m = materials.len() as u32;
                     materials.push(Material::default_diffuse());
                     m
                 }
             };
-            let file_key = format!("mesh[{i}].file");
-            let mesh_path = Path::new(mesh_entry.file.get_ref());
-            let mesh = load_mesh(mesh_path).map_err(|error| SceneError::Mesh {
-                file: self.file.clone(),
-                line: self.line_of(mesh_entry.file.span().start),
-                key: file_key.clone(),
-                error: Box::new(error),
-            })?;
-            let transform = self.transform(i, mesh_entry)?;
-            let name = mesh_entry
-                .name
-                .clone()
-                .unwrap_or_else(|| mesh_entry.file.get_ref().clone());
-            assembly
-                .add(
-                    name,
-                    &mesh,
-                    &transform,
-                    material,
-                    mesh_entry.smooth.unwrap_or(false),
-                )
-                .map_err(|reason| self.error_at(&entry.span(), &format!("mesh[{i}]"), reason))?;
+            let file_name = mesh_entry.file.get_ref().as_str();
+            let id = match loaded.get(file_name) {
+                Some(&id) => id,
+                None => {
+                    let mesh =
+                        load_mesh(Path::new(file_name)).map_err(|error| SceneError::Mesh {
+                            file: self.file.clone(),
+                            line: self.line_of(mesh_entry.file.span().start),
+                            key: format!("mesh[{i}].file"),
+                            error: Box::new(error),
+                        })?;
+                    let id = assembly.add_mesh(mesh_entry.name(), mesh);
+                    loaded.insert(file_name, id);
+                    id
+                }
+            };
+            let key = format!("mesh[{i}]");
+            let transform = self.transform(
+                &key,
+                &mesh_entry.translate,
+                &mesh_entry.rotate,
+                &mesh_entry.scale,
+            )?;
+            let smooth = mesh_entry.smooth.unwrap_or(false);
+            if mesh_entry.place.unwrap_or(true) {
+                assembly
+                    .add_instance(id, transform.to_daffine(), material, smooth)
+                    .map_err(|reason| self.error_at(&entry.span(), &key, reason))?;
+            }
+            placed_meshes.push(PlacedMesh {
+                id,
+                material,
+                smooth,
+                transform,
+            });
+        }
+        for (i, entry) in file.instance.iter().enumerate() {
+            self.place_instances(
+                i,
+                entry,
+                (&file.mesh, &placed_meshes),
+                &material_index,
+                &mut assembly,
+            )?;
         }
         if assembly.triangle_count() == 0 {
             return Err(self.error_at(
                 &(0..0),
                 "mesh",
-                "the scene has no triangles (add a [[mesh]])",
+                "the scene has no triangles (add a [[mesh]] or an [[instance]])",
             ));
         }
         Ok(assembly.finish(materials, camera, lights, settings))
@@ -627,15 +667,22 @@ impl Context<'_> {
         }
     }
 
-    fn transform(&self, i: usize, e: &MeshEntry) -> Result<Transform, SceneError> {
+    /// The placement `translate`, `rotate`, `scale` of the table `key` (`mesh[2]`, ...).
+    pub(super) fn transform(
+        &self,
+        key: &str,
+        translate: &Option<V3>,
+        rotate: &Option<V3>,
+        scale: &Option<Spanned<Scale>>,
+    ) -> Result<Transform, SceneError> {
         let mut t = Transform::default();
-        if let Some(v) = &e.translate {
-            t.translate = self.point(v, &format!("mesh[{i}].translate"))?;
+        if let Some(v) = translate {
+            t.translate = self.point(v, &format!("{key}.translate"))?;
         }
-        if let Some(v) = &e.rotate {
-            t.rotate_degrees = self.point(v, &format!("mesh[{i}].rotate"))?;
+        if let Some(v) = rotate {
+            t.rotate_degrees = self.point(v, &format!("{key}.rotate"))?;
         }
-        if let Some(s) = &e.scale {
+        if let Some(s) = scale {
             let scale = match s.get_ref() {
                 Scale::Uniform(k) => Vec3::splat(*k),
                 Scale::PerAxis(v) => Vec3::from(v.0),
@@ -646,7 +693,7 @@ impl Context<'_> {
             {
                 return Err(self.error_at(
                     &s.span(),
-                    &format!("mesh[{i}].scale"),
+                    &format!("{key}.scale"),
                     "must be finite and nonzero",
                 ));
             }
@@ -655,7 +702,32 @@ impl Context<'_> {
         Ok(t)
     }
 
-    fn point(&self, v: &V3, key: &str) -> Result<Vec3, SceneError> {
+    /// The index of material `name`, or an error at `span` listing the scene's materials.
+    pub(super) fn material_named(
+        &self,
+        name: &str,
+        span: &Range<usize>,
+        key: &str,
+        material_index: &BTreeMap<String, u32>,
+    ) -> Result<u32, SceneError> {
+        material_index.get(name).copied().ok_or_else(|| {
+            let known: Vec<&str> = material_index.keys().map(String::as_str).collect();
+            self.error_at(
+                span,
+                key,
+                format!(
+                    "no material named {name:?} (the scene defines: {})",
+                    if known.is_empty() {
+                        "none".into()
+                    } else {
+                        known.join(", ")
+                    }
+                ),
+            )
+        })
+    }
+
+    pub(super) fn point(&self, v: &V3, key: &str) -> Result<Vec3, SceneError> {
         let p = Vec3::from(v.get_ref().0);
         if p.is_finite() {
             Ok(p)

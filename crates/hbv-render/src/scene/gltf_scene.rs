@@ -10,10 +10,12 @@
 
 use std::path::Path;
 
-use glam::{Mat4, Vec3};
+use std::collections::HashMap;
+
+use glam::{DAffine3, DMat4, Vec3};
 use hbv::TriangleMesh;
 
-use super::{RenderSettings, Scene, SceneAssembly, SceneError, Transform};
+use super::{RenderSettings, Scene, SceneAssembly, SceneError};
 use crate::camera::Camera;
 use crate::light::Light;
 use crate::material::{Material, Surface};
@@ -47,45 +49,42 @@ pub fn load_gltf_scene(path: &Path) -> Result<Scene, SceneError> {
     materials.push(Material::default_diffuse());
 
     let mut assembly = SceneAssembly::default();
+    // Each primitive of each glTF mesh becomes one mesh of the scene, made the first time a
+    // node uses it; every node using it adds an instance.
+    let mut primitive_meshes: HashMap<(usize, usize), u32> = HashMap::new();
     let mut camera = None;
     let mut lights = Vec::new();
-    let mut stack: Vec<(gltf::Node, Mat4)> =
-        gltf_scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect();
+    let mut stack: Vec<(gltf::Node, DMat4)> =
+        gltf_scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect();
     while let Some((node, parent)) = stack.pop() {
-        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        let local = node.transform().matrix().map(|c| c.map(f64::from));
+        let world64 = parent * DMat4::from_cols_array_2d(&local);
+        let world = world64.as_mat4();
         let place = format!("node {}", node.index());
         if let Some(mesh) = node.mesh() {
             for primitive in mesh.primitives() {
                 if primitive.mode() != gltf::mesh::Mode::Triangles {
                     continue; // points and lines have no surface to hit
                 }
-                let reader = primitive.reader(|b| Some(&buffers[b.index()]));
-                let positions: Vec<Vec3> = reader
-                    .read_positions()
-                    .ok_or_else(|| error(&place, "a primitive has no POSITION".into()))?
-                    .map(|p| world.transform_point3(Vec3::from(p)))
-                    .collect();
-                let flat: Vec<u32> = match reader.read_indices() {
-                    Some(i) => i.into_u32().collect(),
-                    None => (0..positions.len() as u32).collect(),
+                let key = (mesh.index(), primitive.index());
+                let id = match primitive_meshes.get(&key) {
+                    Some(&id) => id,
+                    None => {
+                        let triangles = primitive_mesh(&primitive, &buffers)
+                            .map_err(|reason| error(&place, reason))?;
+                        let name = mesh.name().unwrap_or("mesh").to_string();
+                        let id = assembly.add_mesh(name, triangles);
+                        primitive_meshes.insert(key, id);
+                        id
+                    }
                 };
-                let indices = flat.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
-                let triangles = TriangleMesh::new(positions, indices)
-                    .map_err(|e| error(&place, e.to_string()))?;
                 let m = primitive
                     .material()
                     .index()
                     .map_or(default_material, |i| i as u32);
-                let name = mesh.name().unwrap_or("mesh").to_string();
                 assembly
-                    .add(
-                        name,
-                        &triangles,
-                        &Transform::default(),
-                        m,
-                        has_normals(&primitive),
-                    )
-                    .map_err(|reason| error(&place, reason.into()))?;
+                    .add_instance(id, DAffine3::from_mat4(world64), m, has_normals(&primitive))
+                    .map_err(|reason| error(&place, reason))?;
             }
         }
         if let (None, Some(c)) = (&camera, node.camera()) {
@@ -129,7 +128,7 @@ pub fn load_gltf_scene(path: &Path) -> Result<Scene, SceneError> {
                 },
             });
         }
-        stack.extend(node.children().map(|c| (c, world)));
+        stack.extend(node.children().map(|c| (c, world64)));
     }
     if assembly.triangle_count() == 0 {
         return Err(error("meshes", "the scene has no triangles".into()));
@@ -139,7 +138,7 @@ pub fn load_gltf_scene(path: &Path) -> Result<Scene, SceneError> {
         ..RenderSettings::default()
     };
     let mut scene = assembly.finish(materials, Camera::default_for_bounds(), lights, settings);
-    let bounds = scene.mesh.bounds();
+    let bounds = scene.bounds();
     let (centre, radius) = (
         (bounds.min + bounds.max) / 2.0,
         ((bounds.max - bounds.min).length() / 2.0).max(1e-6),
@@ -160,6 +159,25 @@ pub fn load_gltf_scene(path: &Path) -> Result<Scene, SceneError> {
         });
     }
     Ok(scene)
+}
+
+/// A primitive's triangles in its mesh's own coordinates.
+fn primitive_mesh(
+    primitive: &gltf::Primitive,
+    buffers: &[gltf::buffer::Data],
+) -> Result<TriangleMesh, String> {
+    let reader = primitive.reader(|b| Some(&buffers[b.index()]));
+    let positions: Vec<Vec3> = reader
+        .read_positions()
+        .ok_or("a primitive has no POSITION")?
+        .map(Vec3::from)
+        .collect();
+    let flat: Vec<u32> = match reader.read_indices() {
+        Some(i) => i.into_u32().collect(),
+        None => (0..positions.len() as u32).collect(),
+    };
+    let indices = flat.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+    TriangleMesh::new(positions, indices).map_err(|e| e.to_string())
 }
 
 /// Smooth shading when the file gives vertex normals (we interpolate our own, area-weighted).

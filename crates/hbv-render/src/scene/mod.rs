@@ -1,20 +1,37 @@
-//! Scenes: meshes with materials, a camera, lights, and how to render them.
+//! Scenes: meshes placed by instances with materials, a camera, lights, and how to render them.
 //!
-//! Every object of a scene is merged into one [`TriangleMesh`], so one accelerator traces the
-//! whole scene; per-triangle tables map a hit's primitive id back to its object and material.
+//! A scene keeps each mesh once, in its own coordinates, and places it by any number of
+//! instances (an affine map in f64, a material, flat or smooth shading). It is traced either as
+//! a two-level [`hbv::scene::Scene`] ([`Scene::two_level`]: each mesh's BVH built once, a top
+//! level over the instances) or flattened ([`Scene::flat`]: every instance's triangles copied
+//! into one world-space [`TriangleMesh`], for any [`hbv::Accelerator`], the object caches and
+//! the counted queries). Hits of either are turned into shading geometry by
+//! [`Scene::surface`].
 
+mod assembly;
 mod cornell_box;
 mod error;
 mod file;
+mod flat;
 mod gltf_scene;
+mod instance_entry;
+mod surface;
 mod transform;
+mod two_level;
+
+use std::sync::OnceLock;
 
 use glam::Vec3;
+use hbv::geometry::Aabb;
+use hbv::scene::InstanceTransform;
 use hbv::TriangleMesh;
 
+pub use assembly::SceneAssembly;
 pub use error::SceneError;
 pub use file::{load_scene, parse_scene};
+pub use flat::FlatScene;
 pub use gltf_scene::load_gltf_scene;
+pub use surface::{HitFace, SurfaceHit, SurfacePoint};
 pub use transform::Transform;
 
 use crate::camera::Camera;
@@ -50,33 +67,44 @@ impl Default for RenderSettings {
     }
 }
 
-/// A scene ready to render: one merged mesh, what each triangle is made of, camera and lights.
+/// A scene ready to render: meshes, the instances placing them, materials, camera and lights.
 #[derive(Clone, Debug)]
 pub struct Scene {
-    /// Every object's triangles, placed in the scene, in object order.
-    pub mesh: TriangleMesh,
-    /// Material (index into `materials`) of each triangle.
-    pub triangle_material: Vec<u32>,
-    /// Object (index into `objects`) of each triangle.
-    pub triangle_object: Vec<u32>,
-    /// Area-weighted vertex normals of the merged mesh (used by smooth objects).
-    pub vertex_normals: Vec<Vec3>,
-    pub objects: Vec<SceneObject>,
+    /// Each mesh once, in its own coordinates.
+    pub meshes: Vec<SceneMesh>,
+    /// The placed copies of the meshes, in the order of their ids (`SceneHit::instance`).
+    pub instances: Vec<SceneInstance>,
     pub materials: Vec<Material>,
     pub camera: Camera,
     pub lights: Vec<Light>,
     pub settings: RenderSettings,
+    /// The flattened scene, made on first use ([`Scene::flat`]).
+    flat: OnceLock<Result<FlatScene, String>>,
 }
 
-/// One entry of the scene: a named mesh.
-#[derive(Clone, Debug, PartialEq)]
-pub struct SceneObject {
+/// A mesh of the scene, in its own coordinates.
+#[derive(Clone, Debug)]
+pub struct SceneMesh {
     pub name: String,
+    pub mesh: TriangleMesh,
+    /// Area-weighted vertex normals (used by smooth instances).
+    pub vertex_normals: Vec<Vec3>,
+}
+
+/// One placed copy of a mesh.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SceneInstance {
+    /// Index into [`Scene::meshes`].
+    pub mesh: u32,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
     /// Interpolate vertex normals across triangles (for curved surfaces); flat shading otherwise.
     pub smooth: bool,
-    /// Its first triangle in the merged mesh, and how many it has.
-    pub first_triangle: u32,
-    pub triangle_count: u32,
+    /// `world = A · local + b`, checked (finite, invertible) and kept in f64.
+    pub transform: InstanceTransform,
+    /// The flattened scene's id of this instance's first triangle: instances' triangles follow
+    /// each other in instance order.
+    pub first_face: u64,
 }
 
 impl Scene {
@@ -85,124 +113,61 @@ impl Scene {
         cornell_box::cornell_box()
     }
 
-    /// The shading normal at barycentric `(u, v)` of triangle `prim`: the interpolated vertex
-    /// normal for smooth objects, the face normal otherwise (not yet facing any side).
-    pub fn shading_normal(&self, prim: u32, u: f32, v: f32, face_normal: Vec3) -> Vec3 {
-        let object = &self.objects[self.triangle_object[prim as usize] as usize];
-        if !object.smooth {
-            return face_normal;
-        }
-        let [a, b, c] = self.mesh.indices()[prim as usize];
-        let n = (1.0 - u - v) * self.vertex_normals[a as usize]
-            + u * self.vertex_normals[b as usize]
-            + v * self.vertex_normals[c as usize];
-        n.try_normalize().unwrap_or(face_normal)
+    /// Triangles as seen: every instance's triangles, shared meshes counted once per instance.
+    pub fn triangle_count(&self) -> u64 {
+        self.instances.last().map_or(0, |i| {
+            i.first_face + self.meshes[i.mesh as usize].mesh.triangle_count() as u64
+        })
     }
-}
 
-/// Collects objects into one mesh, then makes the [`Scene`].
-#[derive(Default)]
-pub struct SceneAssembly {
-    positions: Vec<Vec3>,
-    indices: Vec<[u32; 3]>,
-    triangle_material: Vec<u32>,
-    triangle_object: Vec<u32>,
-    objects: Vec<SceneObject>,
-}
-
-impl SceneAssembly {
-    /// Appends `mesh`, placed by `transform`, made of material `material`. Fails (adding
-    /// nothing) when the placement overflows `f32` or the scene would exceed `u32` ids.
-    pub fn add(
-        &mut self,
-        name: impl Into<String>,
-        mesh: &TriangleMesh,
-        transform: &Transform,
-        material: u32,
-        smooth: bool,
-    ) -> Result<(), &'static str> {
-        let affine = transform.to_affine();
-        let placed: Vec<Vec3> = mesh
-            .positions()
+    /// Triangles as stored: each mesh's once.
+    pub fn stored_triangle_count(&self) -> u64 {
+        self.meshes
             .iter()
-            .map(|&p| affine.transform_point3(p))
-            .collect();
-        if placed.iter().any(|p| !p.is_finite()) {
-            return Err("the transform takes coordinates out of the range of f32");
-        }
-        if self.positions.len() + placed.len() > u32::MAX as usize
-            || self.indices.len() + mesh.triangle_count() > u32::MAX as usize
-        {
-            return Err("the scene has more than 2^32 vertices or triangles");
-        }
-        let base = self.positions.len() as u32;
-        let object = self.objects.len() as u32;
-        self.positions.extend(placed);
-        self.indices.extend(
-            mesh.indices()
-                .iter()
-                .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
-        );
-        let n = mesh.triangle_count();
-        self.triangle_material
-            .extend(std::iter::repeat_n(material, n));
-        self.triangle_object.extend(std::iter::repeat_n(object, n));
-        self.objects.push(SceneObject {
-            name: name.into(),
-            smooth,
-            first_triangle: self.triangle_object.len() as u32 - n as u32,
-            triangle_count: n as u32,
-        });
-        Ok(())
+            .map(|m| m.mesh.triangle_count() as u64)
+            .sum()
     }
 
-    /// Triangles added so far.
-    pub fn triangle_count(&self) -> usize {
-        self.indices.len()
+    /// Whether some mesh is placed by more than one instance.
+    pub fn shares_meshes(&self) -> bool {
+        let mut uses = vec![0u32; self.meshes.len()];
+        self.instances.iter().any(|i| {
+            uses[i.mesh as usize] += 1;
+            uses[i.mesh as usize] > 1
+        })
     }
 
-    /// The scene of the objects added.
-    pub fn finish(
-        self,
-        materials: Vec<Material>,
-        camera: Camera,
-        lights: Vec<Light>,
-        settings: RenderSettings,
-    ) -> Scene {
-        let vertex_normals = area_weighted_normals(&self.positions, &self.indices);
-        let mesh = TriangleMesh::new(self.positions, self.indices)
-            .expect("placed meshes keep finite positions and valid indices");
-        Scene {
-            mesh,
-            triangle_material: self.triangle_material,
-            triangle_object: self.triangle_object,
-            vertex_normals,
-            objects: self.objects,
-            materials,
-            camera,
-            lights,
-            settings,
-        }
+    /// A box holding every instance's world-space vertices (each mesh's box mapped in f64 and
+    /// rounded outwards).
+    pub fn bounds(&self) -> Aabb {
+        self.instances.iter().fold(Aabb::EMPTY, |b, i| {
+            b.union(&assembly::world_box(
+                &i.transform,
+                &self.meshes[i.mesh as usize].mesh.bounds(),
+            ))
+        })
     }
-}
 
-/// Vertex normals as the sum of the adjacent faces' `(p1 − p0) × (p2 − p0)` (area weighting,
-/// Gouraud 1971), normalized; zero for vertices of degenerate triangles only.
-fn area_weighted_normals(positions: &[Vec3], indices: &[[u32; 3]]) -> Vec<Vec3> {
-    let mut normals = vec![Vec3::ZERO; positions.len()];
-    for &[a, b, c] in indices {
-        let (pa, pb, pc) = (
-            positions[a as usize],
-            positions[b as usize],
-            positions[c as usize],
-        );
-        let n = (pb - pa).cross(pc - pa);
-        for i in [a, b, c] {
-            normals[i as usize] += n;
-        }
+    /// The scene flattened into one world-space mesh, made on first use and kept; an error when
+    /// it would exceed `u32` vertex or triangle ids.
+    pub fn flat(&self) -> Result<&FlatScene, String> {
+        self.flat
+            .get_or_init(|| FlatScene::new(self))
+            .as_ref()
+            .map_err(Clone::clone)
     }
-    normals
-        .into_iter()
-        .map(|n| n.try_normalize().unwrap_or(Vec3::ZERO))
-        .collect()
+
+    /// The flattened scene's mesh (see [`Scene::flat`]). Panics when the scene is too large to
+    /// flatten: for scenes known to be small (the built-in ones, tests).
+    pub fn flat_mesh(&self) -> &TriangleMesh {
+        &self
+            .flat()
+            .unwrap_or_else(|e| panic!("the scene cannot be flattened: {e}"))
+            .mesh
+    }
+
+    /// The material of a hit's instance.
+    pub fn material_of(&self, instance: u32) -> &Material {
+        &self.materials[self.instances[instance as usize].material as usize]
+    }
 }

@@ -1,6 +1,6 @@
 //! Placing a mesh in the scene: scale, then rotate, then translate.
 
-use glam::{Affine3A, Quat, Vec3};
+use glam::{Affine3A, DAffine3, DQuat, Quat, Vec3};
 
 /// An object's placement: `p ↦ translate + R(scale ⊙ p)`, where `R` rotates by
 /// `rotate_degrees.x` about the x axis first, then `.y` about y, then `.z` about z (fixed axes).
@@ -30,6 +30,18 @@ impl Transform {
             Quat::from_rotation_z(r.z) * Quat::from_rotation_y(r.y) * Quat::from_rotation_x(r.x);
         Affine3A::from_scale_rotation_translation(self.scale, rotation, self.translate)
     }
+
+    /// The same map in f64 (its fields widened, the rotation made in f64).
+    pub fn to_daffine(&self) -> DAffine3 {
+        let r = self.rotate_degrees.as_dvec3().map(f64::to_radians);
+        let rotation =
+            DQuat::from_rotation_z(r.z) * DQuat::from_rotation_y(r.y) * DQuat::from_rotation_x(r.x);
+        DAffine3::from_scale_rotation_translation(
+            self.scale.as_dvec3(),
+            rotation,
+            self.translate.as_dvec3(),
+        )
+    }
 }
 
 #[cfg(test)]
@@ -45,5 +57,7 @@ mod tests {
         };
         let p = t.to_affine().transform_point3(Vec3::X);
         assert!((p - Vec3::new(10.0, 2.0, 0.0)).length() < 1e-5, "{p}");
+        let q = t.to_daffine().transform_point3(glam::DVec3::X).as_vec3();
+        assert!((q - p).length() < 1e-5, "{q}");
     }
 }

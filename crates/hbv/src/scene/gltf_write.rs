@@ -19,7 +19,7 @@ use std::fmt::Write as _;
 use std::io::{self, Write};
 use std::path::Path;
 
-use glam::{DAffine3, DMat4, DVec3, Vec3};
+use glam::{DAffine3, DMat4, Vec3};
 
 use super::instance::InstanceState;
 use super::Scene;
@@ -81,7 +81,7 @@ struct GlbWriter {
 impl GlbWriter {
     /// Appends `bytes` to the buffer as a new buffer view (4-byte aligned) and returns its index.
     fn add_view(&mut self, bytes: &[u8], target: u32) -> usize {
-        while self.buffer.len() % 4 != 0 {
+        while !self.buffer.len().is_multiple_of(4) {
             self.buffer.push(0);
         }
         let offset = self.buffer.len();
@@ -170,7 +170,7 @@ impl GlbWriter {
 
     /// The file: header, JSON chunk (padded with spaces), BIN chunk (padded with zeros).
     fn finish(mut self) -> Vec<u8> {
-        while self.buffer.len() % 4 != 0 {
+        while !self.buffer.len().is_multiple_of(4) {
             self.buffer.push(0);
         }
         let roots = self.roots.iter().fold(String::new(), |mut s, r| {
@@ -190,7 +190,7 @@ impl GlbWriter {
             self.buffer.len(),
         )
         .into_bytes();
-        while json.len() % 4 != 0 {
+        while !json.len().is_multiple_of(4) {
             json.push(b' ');
         }
         let total = 12 + 8 + json.len() + 8 + self.buffer.len();
@@ -224,7 +224,7 @@ mod tests {
     use crate::mesh::procedural::icosphere;
     use crate::mesh::MeshFormat;
     use crate::scene::{InstanceTransform, SceneRay};
-    use glam::DQuat;
+    use glam::{DQuat, DVec3};
 
     #[test]
     fn a_written_scene_reads_back_with_the_same_ids_and_answers() {

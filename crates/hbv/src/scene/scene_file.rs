@@ -5,9 +5,10 @@
 //!
 //! A scene file holds the scene's [`SceneStructure`] (so that the opened scene lays out its
 //! meshes, and adds new ones, as the saved one did), each mesh with its tree exactly as a
-//! version-1 mesh file holds one, and every instance by id: its mesh, its transform (the f64
-//! entries, exactly), its mask, and whether it was removed (a hole, so that every id keeps its
-//! meaning).
+//! version-1 mesh file holds one and the origin of its stored vertices (a float64 mesh's centre,
+//! [`Scene::add_mesh_f64`], so that instances placed or moved later compose it as before), and
+//! every instance by id: its mesh, its transform as the scene holds it (the f64 entries,
+//! exactly), its mask, and whether it was removed (a hole, so that every id keeps its meaning).
 //!
 //! **The top level is not stored.** [`Scene::open`] lays out each mesh's saved tree and builds
 //! the top level over the live instances ([`Scene::build`]): instances pending at the save
@@ -32,13 +33,16 @@ use std::sync::OnceLock;
 
 use rayon::prelude::*;
 
-use super::instance::InstanceState;
-use super::{MeshId, Scene, SceneMesh, SceneStructure};
+use glam::DVec3;
+
+use super::instance::{Instance, InstanceState};
+use super::{Scene, SceneMesh, SceneStructure};
 use crate::atomic_file::Replace;
 use crate::bvh::file::{
     kind_of_bytes, parse_scene, read_file, save_counted, write_scene, BvhFile, BvhFileError,
     BvhFileKind, BvhFileProblem, SceneMeshParts, StoredInstance, StoredScene, StoredStructure,
 };
+use crate::geometry::Aabb;
 use crate::scene::InstanceTransform;
 
 impl Scene {
@@ -61,7 +65,9 @@ impl Scene {
             },
             settings: settings_line(s, m.tree.is_some()),
         });
-        write_scene(stored_structure(s), &self.stored_instances(), meshes, out)
+        let origins: Vec<[f64; 3]> = self.meshes.iter().map(|m| m.origin.to_array()).collect();
+        let instances = self.stored_instances();
+        write_scene(stored_structure(s), &origins, &instances, meshes, out)
     }
 
     /// The scene's `.hbv` scene file, in memory (for pickling); read back by
@@ -92,7 +98,8 @@ impl Scene {
             })
     }
 
-    /// Every instance as its file records it, by id.
+    /// Every instance as its file records it, by id: its transform as the scene holds it, which
+    /// places the mesh's stored vertices (a float64 mesh's origin composed in).
     fn stored_instances(&self) -> Vec<StoredInstance> {
         self.instances
             .iter()
@@ -177,8 +184,9 @@ fn settings_line(s: &SceneStructure, refitted: bool) -> String {
 }
 
 /// The scene a checked file describes: its meshes' trees laid out (in parallel), its instances
-/// added by id (removed ones removed again, so their ids stay holes), the top level built.
-/// Transforms are checked here as [`Scene::add_instance`]'s callers check theirs.
+/// put back by id as the scene held them (their transforms place the stored vertices, so they
+/// are not composed with the meshes' origins again; removed ones are holes), the top level
+/// built. Transforms are checked as [`InstanceTransform::new`] checks every transform.
 fn scene_of(stored: StoredScene) -> Result<Scene, BvhFileProblem> {
     let s = stored.structure;
     let structure = SceneStructure {
@@ -187,38 +195,39 @@ fn scene_of(stored: StoredScene) -> Result<Scene, BvhFileProblem> {
         layout: s.layout,
         layout_options: s.layout_options,
     };
-    let invalid = |id: usize, reason: String| BvhFileProblem::Invalid {
-        place: format!("instance {id}"),
-        reason,
-    };
-    let transforms = stored
-        .instances
-        .iter()
-        .enumerate()
-        .map(|(id, i)| InstanceTransform::from_rows(i.rows).map_err(|e| invalid(id, e.to_string())))
-        .collect::<Result<Vec<_>, _>>()?;
     let mut scene = Scene::with_structure(structure);
     scene.meshes = stored
         .meshes
         .into_par_iter()
-        .map(|file| SceneMesh {
+        .map(|(file, origin)| SceneMesh {
             bounds: file.mesh.bounds(),
             layout: structure
                 .layout
                 .lay_out(&file.tree, &file.mesh, &structure.layout_options),
             mesh: file.mesh,
+            origin: DVec3::from_array(origin),
             tree: None,
             search: OnceLock::new(),
         })
         .collect();
-    for (id, (i, transform)) in stored.instances.iter().zip(transforms).enumerate() {
-        let added = scene
-            .add_instance(MeshId(i.mesh), transform, i.mask)
-            .map_err(|e| invalid(id, e.to_string()))?;
-        if i.removed {
-            scene
-                .remove_instance(added)
-                .map_err(|e| invalid(id, e.to_string()))?;
+    for (id, stored) in stored.instances.iter().enumerate() {
+        let transform =
+            InstanceTransform::from_rows(stored.rows).map_err(|e| BvhFileProblem::Invalid {
+                place: format!("instance {id}"),
+                reason: e.to_string(),
+            })?;
+        // The mesh id was checked against the mesh count by the reader.
+        let mesh_box = &scene.meshes[stored.mesh as usize].bounds;
+        let instance = Instance::new(stored.mesh, transform, stored.mask, mesh_box);
+        if stored.removed {
+            scene.instances.push(Instance {
+                state: InstanceState::Removed,
+                world_box: Aabb::EMPTY,
+                ..instance
+            });
+        } else {
+            scene.pending.push(id as u32);
+            scene.instances.push(instance);
         }
     }
     scene.build();

@@ -10,10 +10,13 @@
 //!     24    8  u64 mesh count M
 //!     32    8  u64 instance count I
 //!     40   16  reserved, 0
-//!     56    4  u32 CRC-32 of the structure and instance records (bytes 64 .. 96 + 112 I)
+//!     56    4  u32 CRC-32 of the record section (bytes 64 .. 96 + 24 M + 112 I)
 //!     60    4  u32 CRC-32 of header bytes 0..60
 //! then, in this order:
 //!   structure  32 bytes: how the scene builds and lays out its meshes (below)
+//!   origins    M × 3 f64: where each mesh's stored vertices have their origin, in the
+//!              coordinates it was given in (0 but for float64 meshes, stored relative to
+//!              their centre); mesh id = index
 //!   instances  I × 112 bytes, instance id = index (below)
 //!   meshes     M version-1 mesh files back to back, mesh id = index, each self-delimiting
 //!              (its header's sizes) and sealed by its own two CRC-32s
@@ -23,8 +26,8 @@
 //!    4  4  u32 layout code                    4  4  u32 mask
 //!    8  4  u32 insertion order code           8  4  u32 state: 0 live, 1 removed
 //!   12  4  u32 flags: bit 0 optimize,        12  4  u32 reserved, 0
-//!                     bit 1 ray packets      16 96  12 × f64: the rows of [A | b],
-//!   16  8  u64 leaf size, 0 = default                 world = A · local + b
+//!                     bit 1 ray packets      16 96  12 × f64: the rows of [A | b], placing
+//!   16  8  u64 leaf size, 0 = default                 the stored vertices: world = A · v + b
 //!   24  8  u64 shuffle seed (0 unless shuffle)
 //! ```
 //!
@@ -42,6 +45,7 @@ use super::read::invalid;
 
 pub(super) const STRUCTURE_SIZE: usize = 32;
 pub(super) const INSTANCE_SIZE: usize = 112;
+pub(super) const ORIGIN_SIZE: usize = 24;
 
 const OPTIMIZE_FLAG: u32 = 1;
 const RAY_PACKETS_FLAG: u32 = 2;
@@ -69,6 +73,31 @@ pub(crate) struct StoredStructure {
     pub builder_options: BuilderOptions,
     pub layout: LayoutKind,
     pub layout_options: LayoutOptions,
+}
+
+/// Where mesh `id`'s stored vertices have their origin: three finite f64.
+pub(super) fn origin_from_bytes(b: &[u8], id: usize) -> Result<[f64; 3], BvhFileProblem> {
+    let origin: [f64; 3] = std::array::from_fn(|k| f64_at(b, 8 * k));
+    if origin.iter().any(|c| !c.is_finite()) {
+        return Err(invalid(
+            format!("mesh {id}"),
+            format!("its origin {origin:?} is not finite"),
+        ));
+    }
+    Ok(origin)
+}
+
+pub(super) fn origin_to_bytes(origin: [f64; 3]) -> [u8; ORIGIN_SIZE] {
+    let mut b = [0u8; ORIGIN_SIZE];
+    for (k, c) in origin.iter().enumerate() {
+        b[8 * k..8 * k + 8].copy_from_slice(&c.to_le_bytes());
+    }
+    b
+}
+
+/// Little-endian `f64` at `at` (the caller has checked the length).
+fn f64_at(b: &[u8], at: usize) -> f64 {
+    f64::from_le_bytes(b[at..at + 8].try_into().expect("8 bytes"))
 }
 
 /// An instance as its file records it; the transform is checked by the scene that reads it.
@@ -231,7 +260,7 @@ impl StoredInstance {
         if u32_at(b, 12) != 0 {
             return Err(bad("reserved bytes 12..16 are not 0".into()));
         }
-        let entry = |k: usize| f64::from_le_bytes(b[16 + 8 * k..24 + 8 * k].try_into().expect("8"));
+        let entry = |k: usize| f64_at(b, 16 + 8 * k);
         Ok(StoredInstance {
             mesh,
             mask: u32_at(b, 4),

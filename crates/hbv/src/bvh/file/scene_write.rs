@@ -3,7 +3,7 @@
 use std::borrow::Cow;
 use std::io::{self, Write};
 
-use super::scene_format::{SceneHeader, StoredInstance, StoredStructure};
+use super::scene_format::{origin_to_bytes, SceneHeader, StoredInstance, StoredStructure};
 use super::write::{write, MeshParts};
 use crate::bvh::BuildTree;
 use crate::mesh::TriangleMesh;
@@ -19,18 +19,23 @@ pub(crate) struct SceneMeshParts<'a> {
 /// Writes a scene file to `out`: the header, the records, then each mesh file in turn as
 /// [`BvhFile::write_to`](super::BvhFile::write_to) writes one, each mesh asked of `meshes`
 /// only when its turn comes (so at most one tree made for the save is held at a time).
+/// `origins` are the meshes' origins, by mesh id: one for each mesh `meshes` gives.
 pub(crate) fn write_scene<'a>(
     structure: StoredStructure,
+    origins: &[[f64; 3]],
     instances: &[StoredInstance],
-    meshes: impl ExactSizeIterator<Item = SceneMeshParts<'a>>,
+    meshes: impl Iterator<Item = SceneMeshParts<'a>>,
     out: &mut impl Write,
 ) -> io::Result<()> {
     let mut records = structure.to_bytes().to_vec();
+    for &origin in origins {
+        records.extend_from_slice(&origin_to_bytes(origin));
+    }
     for instance in instances {
         records.extend_from_slice(&instance.to_bytes());
     }
     let header = SceneHeader {
-        meshes: meshes.len() as u64,
+        meshes: origins.len() as u64,
         instances: instances.len() as u64,
         records_crc: crc32fast::hash(&records),
     };
