@@ -29,14 +29,13 @@
 use std::borrow::Cow;
 use std::io;
 use std::path::Path;
-use std::sync::OnceLock;
 
 use rayon::prelude::*;
 
 use glam::DVec3;
 
 use super::instance::{Instance, InstanceState};
-use super::{Scene, SceneMesh, SceneStructure};
+use super::{Scene, SceneStructure};
 use crate::atomic_file::Replace;
 use crate::bvh::file::{
     kind_of_bytes, parse_scene, read_file, save_counted, write_scene, BvhFile, BvhFileError,
@@ -196,20 +195,20 @@ fn scene_of(stored: StoredScene) -> Result<Scene, BvhFileProblem> {
         layout_options: s.layout_options,
     };
     let mut scene = Scene::with_structure(structure);
-    scene.meshes = stored
+    let laid_out: Vec<_> = stored
         .meshes
         .into_par_iter()
-        .map(|(file, origin)| SceneMesh {
-            bounds: file.mesh.bounds(),
-            layout: structure
-                .layout
-                .lay_out(&file.tree, &file.mesh, &structure.layout_options),
-            mesh: file.mesh,
-            origin: DVec3::from_array(origin),
-            tree: None,
-            search: OnceLock::new(),
+        .map(|(file, origin)| {
+            let layout =
+                structure
+                    .layout
+                    .lay_out(&file.tree, &file.mesh, &structure.layout_options);
+            (file.mesh, layout, DVec3::from_array(origin))
         })
         .collect();
+    for (mesh, layout, origin) in laid_out {
+        scene.push_mesh(mesh, layout, origin);
+    }
     for (id, stored) in stored.instances.iter().enumerate() {
         let transform =
             InstanceTransform::from_rows(stored.rows).map_err(|e| BvhFileProblem::Invalid {
