@@ -280,7 +280,7 @@ proptest! {
 fn fixed_plan() -> Plan {
     let instance = |k: usize| {
         let f = k as f64;
-        let scale = DVec3::new(1.0 + 0.2 * f, if k % 2 == 0 { -1.0 } else { 0.7 }, 1.3);
+        let scale = DVec3::new(1.0 + 0.2 * f, if k.is_multiple_of(2) { -1.0 } else { 0.7 }, 1.3);
         let angles = DVec3::new(0.3 * f, -0.2 * f, 0.1);
         let offset = DVec3::new(4.0 * (f - 2.5), 0.5 * f, -1.0);
         (
