@@ -120,38 +120,29 @@ fn meshes() -> Vec<TriangleMesh> {
     ]
 }
 
-/// A float64 mesh far from the origin (stored relative to its centre): a cube of 1 m at UTM
-/// coordinates.
-fn far_cube() -> (Vec<DVec3>, Vec<[u32; 3]>) {
-    let corner = DVec3::new(500_000.25, 5_000_000.75, 12.5);
-    let positions = (0..8)
-        .map(|k| corner + DVec3::new((k & 1) as f64, ((k >> 1) & 1) as f64, (k >> 2) as f64))
+/// Where the far mesh of [`make_scene`] lies: at UTM coordinates.
+const FAR_CENTRE: DVec3 = DVec3::new(500_000.25, 5_000_000.75, 12.5);
+
+/// A float64 mesh far from the origin (stored relative to its centre): a small sphere at
+/// [`FAR_CENTRE`].
+fn far_sphere() -> (Vec<DVec3>, Vec<[u32; 3]>) {
+    let sphere = icosphere(Vec3::ZERO, 0.5, 1);
+    let positions = sphere
+        .positions()
+        .iter()
+        .map(|p| FAR_CENTRE + p.as_dvec3())
         .collect();
-    let faces = [
-        [0, 2, 1],
-        [1, 2, 3],
-        [4, 5, 6],
-        [5, 7, 6],
-        [0, 1, 4],
-        [1, 5, 4],
-        [2, 6, 3],
-        [3, 6, 7],
-        [0, 4, 2],
-        [2, 4, 6],
-        [1, 3, 5],
-        [3, 7, 5],
-    ];
-    (positions, faces.to_vec())
+    (positions, sphere.indices().to_vec())
 }
 
-/// [`placement`] of mesh `mesh` of [`make_scene`]: the far cube (mesh 4) is first moved from
-/// its UTM corner to the origin, so that its instances lie among the others.
+/// [`placement`] of mesh `mesh` of [`make_scene`]: the far sphere (mesh 4) is first moved from
+/// [`FAR_CENTRE`] to the origin, so that its instances lie among the others.
 fn placement_of(mesh: usize, scale: DVec3, angles: DVec3, offset: DVec3) -> InstanceTransform {
     let placed = placement(scale, angles, offset);
     if mesh != 4 {
         return placed;
     }
-    let home = DAffine3::from_translation(-far_cube().0[0]);
+    let home = DAffine3::from_translation(-FAR_CENTRE);
     InstanceTransform::new(placed.affine() * home).unwrap()
 }
 
@@ -159,7 +150,7 @@ fn placement_of(mesh: usize, scale: DVec3, angles: DVec3, offset: DVec3) -> Inst
 fn make_scene(plan: &Plan, structure: SceneStructure) -> Scene {
     let mut scene = Scene::with_structure(structure);
     let mut ids: Vec<MeshId> = meshes().into_iter().map(|m| scene.add_mesh(m)).collect();
-    let (positions, faces) = far_cube();
+    let (positions, faces) = far_sphere();
     ids.push(scene.add_mesh_f64(&positions, &faces).unwrap());
     let count = plan.instances.len();
     for (k, &(mesh, scale, angles, offset, mask)) in plan.instances.iter().enumerate() {
@@ -280,7 +271,11 @@ proptest! {
 fn fixed_plan() -> Plan {
     let instance = |k: usize| {
         let f = k as f64;
-        let scale = DVec3::new(1.0 + 0.2 * f, if k.is_multiple_of(2) { -1.0 } else { 0.7 }, 1.3);
+        let scale = DVec3::new(
+            1.0 + 0.2 * f,
+            if k.is_multiple_of(2) { -1.0 } else { 0.7 },
+            1.3,
+        );
         let angles = DVec3::new(0.3 * f, -0.2 * f, 0.1);
         let offset = DVec3::new(4.0 * (f - 2.5), 0.5 * f, -1.0);
         (
