@@ -90,6 +90,93 @@ fn a_saved_tree_traces_like_brute_force_and_info_reads_it() {
     }
 }
 
+/// A glTF scene is saved as a `.hbv` scene file that answers as the glTF file loaded; with
+/// `--flatten`, as one mesh of its world-space triangles.
+#[test]
+fn a_gltf_scene_is_saved_as_a_scene_file() {
+    use glam::{DAffine3, DQuat, DVec3};
+    use hbv::atomic_file::Replace;
+    use hbv::bvh::file::BvhFileKind;
+    use hbv::mesh::procedural::icosphere;
+    use hbv::scene::{AnyBvhFile, InstanceTransform, Scene, SceneRay};
+
+    let dir = tempfile::tempdir().unwrap();
+    let mut scene = Scene::new();
+    let ring = scene.add_mesh(torus(Vec3::ZERO, 1.0, 0.3, 12, 6));
+    let ball = scene.add_mesh(icosphere(Vec3::ZERO, 0.8, 2));
+    for k in 0..5 {
+        let f = k as f64;
+        let placed = DAffine3::from_scale_rotation_translation(
+            DVec3::new(if k % 2 == 0 { -1.0 } else { 1.0 }, 1.0 + 0.1 * f, 1.0),
+            DQuat::from_rotation_y(0.4 * f),
+            DVec3::new(3.0 * f - 6.0, 0.0, 0.0),
+        );
+        let mesh = if k % 3 == 0 { ball } else { ring };
+        let t = InstanceTransform::new(placed).unwrap();
+        scene.add_instance(mesh, t, u32::MAX).unwrap();
+    }
+    let glb = dir.path().join("field.glb");
+    scene.write_gltf(&glb, Replace::Never).unwrap();
+    let saved = dir.path().join("field.hbv");
+    let out = hbv(&[
+        "build",
+        p(&glb),
+        "-o",
+        p(&saved),
+        "--builder",
+        "sweep-sah",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["meshes"], 2);
+    assert_eq!(report["instances"], 5);
+    assert_eq!(
+        report["bytes"].as_u64().unwrap(),
+        std::fs::metadata(&saved).unwrap().len()
+    );
+    assert!(report["builder_options"]
+        .as_str()
+        .unwrap()
+        .starts_with("sweep-sah"));
+    let AnyBvhFile::Scene(opened) = AnyBvhFile::load(&saved).unwrap() else {
+        panic!("a scene file was expected");
+    };
+    opened.validate().unwrap();
+    let loaded = Scene::load(&glb).unwrap();
+    let mut hits = 0;
+    for i in 0..300 {
+        let a = i as f32 * 0.21;
+        let origin = Vec3::new(a.sin() * 9.0, 4.0 * a.cos(), 5.0);
+        let target = Vec3::new((i % 13) as f32 - 6.0, 0.2 * (a * 3.0).sin(), 0.0);
+        let ray = SceneRay::new(Ray::new(origin, target - origin));
+        assert_eq!(opened.intersect(&ray), loaded.intersect(&ray), "{ray:?}");
+        hits += usize::from(opened.intersect(&ray).is_some());
+    }
+    assert!(hits > 30, "{hits}");
+
+    // Flattened: one mesh file, every instance's triangles.
+    let flat = dir.path().join("flat.hbv");
+    let out = hbv(&["build", p(&glb), "-o", p(&flat), "--flatten"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let file = AnyBvhFile::load(&flat).unwrap();
+    assert_eq!(file.kind(), BvhFileKind::Mesh);
+    let AnyBvhFile::Mesh(mesh) = file else {
+        unreachable!()
+    };
+    assert_eq!(
+        mesh.mesh.triangle_count(),
+        loaded.flattened().unwrap().mesh.triangle_count()
+    );
+    // And without --force it is never replaced.
+    let out = hbv(&["build", p(&glb), "-o", p(&saved)]);
+    assert!(
+        stderr(&out).contains("exists: pass --force"),
+        "{}",
+        stderr(&out)
+    );
+}
+
 #[test]
 fn build_never_replaces_a_file_unless_forced() {
     let dir = tempfile::tempdir().unwrap();

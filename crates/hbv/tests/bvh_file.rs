@@ -284,7 +284,13 @@ fn foreign_and_future_files_are_named_as_such() {
     assert_fails(b"ply\nformat ascii 1.0\n", "not an hbv BVH file");
     let mut future = bytes.clone();
     future[8..12].copy_from_slice(&(FORMAT_VERSION + 1).to_le_bytes());
-    assert_fails(&future, "format version 2 is newer than this hbv reads (1)");
+    assert_fails(
+        &future,
+        &format!(
+            "format version {} is newer than this hbv reads ({FORMAT_VERSION})",
+            FORMAT_VERSION + 1
+        ),
+    );
     let mut zero = bytes.clone();
     zero[8..12].copy_from_slice(&0u32.to_le_bytes());
     assert_fails(&zero, "unknown format version 0");

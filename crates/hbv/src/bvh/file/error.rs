@@ -3,6 +3,8 @@
 use std::fmt;
 use std::path::PathBuf;
 
+use super::format::BvhFileKind;
+
 /// A `.hbv` file that could not be loaded: the file, and what is wrong with it.
 #[derive(Debug)]
 pub struct BvhFileError {
@@ -19,6 +21,17 @@ pub enum BvhFileProblem {
     NotBvhFile,
     /// Written by a newer hbv (or not a version this one knows).
     UnsupportedVersion { found: u32, supported: u32 },
+    /// A file of the other kind: a scene given to a reader of one mesh, or the reverse.
+    WrongKind {
+        found: BvhFileKind,
+        expected: BvhFileKind,
+    },
+    /// What is wrong with the `mesh`-th mesh file inside a scene file (counted from 0); a
+    /// [`BvhFileProblem::Truncated`] inside it counts its bytes from the start of the scene file.
+    InMesh {
+        mesh: u64,
+        problem: Box<BvhFileProblem>,
+    },
     /// The byte-order mark is not `0x01020304` read little-endian.
     ByteOrder { found: u32 },
     /// The file ends inside `section`.
@@ -64,8 +77,17 @@ impl fmt::Display for BvhFileProblem {
             }
             BvhFileProblem::UnsupportedVersion { found, supported } => write!(
                 f,
-                "unknown format version {found} (this hbv reads version {supported})"
+                "unknown format version {found} (this hbv reads versions 1 to {supported})"
             ),
+            BvhFileProblem::WrongKind { found, expected } => write!(
+                f,
+                "the file holds {} (format version {}), not {}: read it as {}",
+                found.contents(),
+                found.version(),
+                expected.contents(),
+                found.contents()
+            ),
+            BvhFileProblem::InMesh { mesh, problem } => write!(f, "mesh {mesh}: {problem}"),
             BvhFileProblem::ByteOrder { found } => write!(
                 f,
                 "wrong byte-order mark {found:#010x} (expected 0x01020304): \

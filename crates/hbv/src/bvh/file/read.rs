@@ -6,8 +6,8 @@ use glam::Vec3;
 
 use super::error::{BvhFileError, BvhFileProblem};
 use super::format::{
-    sections, u32_at, u64_at, Header, BYTE_ORDER_MARK, FORMAT_VERSION, HEADER_SIZE, LEAF_BIT,
-    MAGIC, MAX_SETTINGS, NODE_SIZE,
+    check_kind, check_section_ends, sections, u32_at, u64_at, BvhFileKind, Header, HEADER_SIZE,
+    LEAF_BIT, MAX_SETTINGS, NODE_SIZE,
 };
 use super::BvhFile;
 use crate::bvh::build::primitive_bounds;
@@ -24,14 +24,18 @@ use crate::mesh::{refuse_devices, TriangleMesh};
 /// costs no more than mapping here (the parser reads every byte for the CRC-32 and copies the
 /// tree out either way; BENCHMARKS.md, "Loading a saved tree").
 pub(super) fn load(path: &Path) -> Result<BvhFile, BvhFileError> {
+    parse(&read_file(path)?, path)
+}
+
+/// The bytes of the `.hbv` file at `path`, read whole; devices and sockets refused.
+pub(crate) fn read_file(path: &Path) -> Result<Vec<u8>, BvhFileError> {
     let fail = |e| BvhFileError {
         path: path.into(),
         problem: BvhFileProblem::Io(e),
     };
     // `/dev/zero` named `x.hbv` would otherwise be read for ever.
     refuse_devices(path, "a .hbv file").map_err(fail)?;
-    let bytes = std::fs::read(path).map_err(fail)?;
-    parse(&bytes, path)
+    std::fs::read(path).map_err(fail)
 }
 
 pub(super) fn parse(bytes: &[u8], path: &Path) -> Result<BvhFile, BvhFileError> {
@@ -41,49 +45,17 @@ pub(super) fn parse(bytes: &[u8], path: &Path) -> Result<BvhFile, BvhFileError> 
     })
 }
 
-fn invalid(place: impl Into<String>, reason: impl Into<String>) -> BvhFileProblem {
+pub(super) fn invalid(place: impl Into<String>, reason: impl Into<String>) -> BvhFileProblem {
     BvhFileProblem::Invalid {
         place: place.into(),
         reason: reason.into(),
     }
 }
 
-/// The header, checked: magic, version, byte order, header checksum, and the declared sizes
-/// against the file's length (so nothing is allocated for sizes the file does not have).
-fn read_header(bytes: &[u8]) -> Result<Header, BvhFileProblem> {
-    let len = bytes.len() as u64;
-    if bytes.len() < MAGIC.len() || bytes[..MAGIC.len()] != MAGIC {
-        return Err(BvhFileProblem::NotBvhFile);
-    }
-    if bytes.len() < HEADER_SIZE {
-        return Err(BvhFileProblem::Truncated {
-            section: "header",
-            needed: HEADER_SIZE as u64,
-            len,
-        });
-    }
-    let version = u32_at(bytes, 8);
-    if version != FORMAT_VERSION {
-        return Err(BvhFileProblem::UnsupportedVersion {
-            found: version,
-            supported: FORMAT_VERSION,
-        });
-    }
-    let mark = u32_at(bytes, 12);
-    if mark != BYTE_ORDER_MARK {
-        return Err(BvhFileProblem::ByteOrder { found: mark });
-    }
-    let (stored, computed) = (u32_at(bytes, 60), crc32fast::hash(&bytes[..60]));
-    if stored != computed {
-        return Err(BvhFileProblem::Checksum {
-            part: "header",
-            stored,
-            computed,
-        });
-    }
-    if u32_at(bytes, 16) as usize != HEADER_SIZE {
-        return Err(invalid("header", "header size is not 64"));
-    }
+/// The header of a mesh file, checked ([`check_kind`]), and the end of its last section, checked
+/// against the bytes there are (so nothing is allocated for sizes the file does not have).
+fn read_header(bytes: &[u8]) -> Result<(Header, u64), BvhFileProblem> {
+    check_kind(bytes, BvhFileKind::Mesh)?;
     let header = Header {
         settings_len: u32_at(bytes, 20),
         vertices: u64_at(bytes, 24),
@@ -97,27 +69,25 @@ fn read_header(bytes: &[u8]) -> Result<Header, BvhFileProblem> {
             section: "settings",
         });
     }
-    let mut end = HEADER_SIZE as u64;
-    for (section, size) in sections(&header) {
-        end = size
-            .and_then(|s| end.checked_add(s))
-            .ok_or(BvhFileProblem::ImpossibleSize { section })?;
-        if end > len {
-            return Err(BvhFileProblem::Truncated {
-                section,
-                needed: end,
-                len,
-            });
-        }
-    }
-    if end < len {
-        return Err(BvhFileProblem::TrailingBytes { expected: end, len });
-    }
-    Ok(header)
+    let end = check_section_ends(HEADER_SIZE as u64, sections(&header), bytes.len() as u64)?;
+    Ok((header, end))
+}
+
+/// The mesh file that starts `bytes` (a scene file's mesh section), and where it ends: what
+/// follows it is not its concern.
+pub(super) fn parse_leading(bytes: &[u8]) -> Result<(BvhFile, usize), BvhFileProblem> {
+    let (_, end) = read_header(bytes)?;
+    // `end` is at most `bytes.len()`, checked by `read_header`.
+    let end = end as usize;
+    Ok((parse_checked(&bytes[..end])?, end))
 }
 
 fn parse_checked(bytes: &[u8]) -> Result<BvhFile, BvhFileProblem> {
-    let header = read_header(bytes)?;
+    let (header, end) = read_header(bytes)?;
+    let len = bytes.len() as u64;
+    if end < len {
+        return Err(BvhFileProblem::TrailingBytes { expected: end, len });
+    }
     let payload = &bytes[HEADER_SIZE..];
     let computed = crc32fast::hash(payload);
     if computed != header.payload_crc {

@@ -6,6 +6,7 @@ use std::io::{self, BufWriter, Write};
 use super::format::{Header, LEAF_BIT, MAX_SETTINGS, NODE_SIZE};
 use super::BvhFile;
 use crate::bvh::{BuildTree, NodeContent, NodeId};
+use crate::mesh::TriangleMesh;
 
 /// One node as stored: its tree node, and where its children or triangles start in the file.
 struct StoredNode {
@@ -40,25 +41,43 @@ fn breadth_first(tree: &BuildTree) -> (Vec<StoredNode>, u64) {
     (order, entries)
 }
 
-/// Writes `file` to `out`: the payload is produced twice, once into the checksum and once into
-/// the file, so that nothing as large as the mesh is buffered.
-pub(super) fn write(file: &BvhFile, out: &mut impl Write) -> io::Result<()> {
-    let settings = truncated_settings(&file.settings);
-    let (order, leaf_entries) = breadth_first(&file.tree);
-    let mut crc = BufWriter::with_capacity(1 << 16, CrcSink(crc32fast::Hasher::new()));
-    write_payload(file, settings, &order, &mut crc)?;
+/// One mesh file's contents, borrowed: what [`BvhFile`] holds, or a scene's mesh and its tree.
+#[derive(Clone, Copy)]
+pub(super) struct MeshParts<'a> {
+    pub mesh: &'a TriangleMesh,
+    pub tree: &'a BuildTree,
+    pub settings: &'a str,
+}
+
+impl<'a> From<&'a BvhFile> for MeshParts<'a> {
+    fn from(file: &'a BvhFile) -> Self {
+        MeshParts {
+            mesh: &file.mesh,
+            tree: &file.tree,
+            settings: &file.settings,
+        }
+    }
+}
+
+/// Writes a mesh file of `parts` to `out`: the payload is produced twice, once into the
+/// checksum and once into the file, so that nothing as large as the mesh is buffered.
+pub(super) fn write(parts: MeshParts<'_>, out: &mut impl Write) -> io::Result<()> {
+    let settings = truncated_settings(parts.settings);
+    let (order, leaf_entries) = breadth_first(parts.tree);
+    let mut crc = BufWriter::with_capacity(1 << 16, CrcSink::default());
+    write_payload(parts, settings, &order, &mut crc)?;
     let crc = crc.into_inner().map_err(|e| e.into_error())?;
     let header = Header {
         settings_len: settings.len() as u32,
-        vertices: file.mesh.positions().len() as u64,
-        triangles: file.mesh.triangle_count() as u64,
+        vertices: parts.mesh.positions().len() as u64,
+        triangles: parts.mesh.triangle_count() as u64,
         nodes: order.len() as u64,
         leaf_entries,
-        payload_crc: crc.0.finalize(),
+        payload_crc: crc.finalize(),
     };
     let mut out = BufWriter::with_capacity(1 << 20, out);
     out.write_all(&header.to_bytes())?;
-    write_payload(file, settings, &order, &mut out)?;
+    write_payload(parts, settings, &order, &mut out)?;
     out.flush()
 }
 
@@ -101,24 +120,24 @@ fn truncated_settings(settings: &str) -> &str {
 }
 
 fn write_payload(
-    file: &BvhFile,
+    parts: MeshParts<'_>,
     settings: &str,
     order: &[StoredNode],
     out: &mut impl Write,
 ) -> io::Result<()> {
     out.write_all(settings.as_bytes())?;
     out.write_all(&[0u8; 3][..settings.len().next_multiple_of(4) - settings.len()])?;
-    for p in file.mesh.positions() {
+    for p in parts.mesh.positions() {
         for c in p.to_array() {
             out.write_all(&c.to_le_bytes())?;
         }
     }
-    for tri in file.mesh.indices() {
+    for tri in parts.mesh.indices() {
         for i in tri {
             out.write_all(&i.to_le_bytes())?;
         }
     }
-    let tree = &file.tree;
+    let tree = parts.tree;
     for stored in order {
         let node = tree.node(stored.id);
         let mut record = [0u8; NODE_SIZE];
@@ -143,7 +162,15 @@ fn write_payload(
 }
 
 /// A writer that only feeds a checksum.
-struct CrcSink(crc32fast::Hasher);
+#[derive(Default)]
+pub(super) struct CrcSink(crc32fast::Hasher);
+
+impl CrcSink {
+    /// The CRC-32 of everything written.
+    pub(super) fn finalize(self) -> u32 {
+        self.0.finalize()
+    }
+}
 
 impl Write for CrcSink {
     fn write(&mut self, buf: &[u8]) -> io::Result<usize> {
