@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 mod common;
 use common::scenes::{instanced_scene, rays_at};
-use common::{hbv, stderr, stdout};
+use common::{hbv, small_bench, stderr, stdout};
 
 use hbv::atomic_file::Replace;
 use hbv::scene::{InstanceId, Scene, SceneRay};
@@ -160,23 +160,8 @@ fn info_and_bench_report_a_saved_scene_as_its_gltf_scene() {
     }
     assert!(run(&["info", s(&saved)]).contains("saved tree"));
 
-    let bench = |input: &Path, flags: &[&str]| -> serde_json::Value {
-        let mut args = vec![
-            "bench",
-            s(input),
-            "--rays",
-            "1500",
-            "--repeat",
-            "1",
-            "--threads",
-            "1",
-            "--json",
-        ];
-        args.extend(flags);
-        serde_json::from_str(&run(&args)).unwrap()
-    };
-    let want = bench(&glb, &["--layout", "wide8"]);
-    let got = bench(&saved, &[]);
+    let want = small_bench(&glb, &["--layout", "wide8"]);
+    let got = small_bench(&saved, &[]);
     assert_eq!(got["scene"], want["scene"]);
     assert_eq!(got["layouts"].as_array().unwrap().len(), 1);
     assert_eq!(got["layouts"][0]["layout"], "saved");

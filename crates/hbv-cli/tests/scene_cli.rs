@@ -6,7 +6,7 @@ use std::path::Path;
 
 mod common;
 use common::scenes::{instanced_scene, rays_at};
-use common::{hbv, stderr, stdout, write_obj};
+use common::{hbv, small_bench, stderr, stdout, write_obj};
 
 use glam::{DVec3, Vec3};
 use hbv::atomic_file::Replace;
@@ -483,23 +483,8 @@ fn bench_counts_a_scene_of_one_instance_as_its_mesh() {
     scene.build();
     let glb = dir.path().join("ring.glb");
     scene.write_gltf(&glb, Replace::Always).unwrap();
-    let bench = |input: &Path| -> serde_json::Value {
-        let text = run(&[
-            "bench",
-            input.to_str().unwrap(),
-            "--rays",
-            "1500",
-            "--repeat",
-            "1",
-            "--threads",
-            "1",
-            "--layout",
-            "wide8",
-            "--json",
-        ]);
-        serde_json::from_str(&text).unwrap()
-    };
-    let (of_mesh, of_scene) = (bench(&obj), bench(&glb));
+    let wide8 = ["--layout", "wide8"];
+    let (of_mesh, of_scene) = (small_bench(&obj, &wide8), small_bench(&glb, &wide8));
     let (of_mesh, of_scene) = (
         of_mesh["results"].as_array().unwrap(),
         of_scene["results"].as_array().unwrap(),
