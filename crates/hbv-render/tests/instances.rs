@@ -12,7 +12,7 @@ use hbv::bvh::layout::Wide8Layout;
 use hbv::mesh::procedural::icosphere;
 use hbv::TriangleMesh;
 use hbv_render::scene::load_scene;
-use hbv_render::{render, Frame, QueryCacheConfig, RenderConfig, Scene, SceneTracer};
+use hbv_render::{render, Frame, QueryCacheConfig, RayKind, RenderConfig, Scene, SceneTracer};
 
 const HEAD: &str = r#"
 [render]
@@ -310,39 +310,17 @@ fn two_level_caches_and_counted_work_leave_the_picture_unchanged() {
             assert_eq!(heat, 0, "{what}");
         }
         let cache = &frame.stats.cache;
-        let lookups = |k: usize| cache[k].hits + cache[k].misses;
-        assert_eq!(
-            lookups(0),
-            if caches.primary {
-                frame.stats.rays[0]
-            } else {
-                0
-            }
-        );
-        assert_eq!(
-            lookups(2),
-            if caches.secondary {
-                frame.stats.rays[2]
-            } else {
-                0
-            }
-        );
-        assert_eq!(
-            lookups(3),
-            if caches.shadow {
-                frame.stats.rays[3]
-            } else {
-                0
-            }
-        );
-        assert_eq!(
-            lookups(1),
-            if caches.secondary {
-                frame.stats.rays[1]
-            } else {
-                0
-            }
-        );
+        let kinds = [
+            RayKind::Primary,
+            RayKind::Reflected,
+            RayKind::Transmitted,
+            RayKind::Shadow { light: 0 },
+        ];
+        for kind in kinds {
+            let (k, c) = (kind.index(), cache[kind.index()]);
+            let cached = caches.caches(kind).then_some(frame.stats.rays[k]);
+            assert_eq!(c.hits + c.misses, cached.unwrap_or(0), "{what}: {kind:?}");
+        }
         if caches.shadow {
             assert!(cache[3].hits > 0 && cache[3].hits <= frame.stats.shadow_blocked);
         }
