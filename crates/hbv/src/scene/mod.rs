@@ -94,6 +94,7 @@ mod brute_force;
 mod closest_point;
 mod error;
 mod gltf;
+mod grown_box_lanes;
 mod instance;
 mod live;
 mod mesh_motion;
@@ -101,6 +102,7 @@ mod scene_hit;
 mod structure;
 mod top_level;
 mod transform;
+mod wide_top_level;
 
 pub use brute_force::FlattenedScene;
 pub use closest_point::{SceneClosestPoint, SceneNearestPoints};
