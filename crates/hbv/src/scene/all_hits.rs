@@ -4,7 +4,9 @@
 //! tie order.
 
 use super::instance::Instance;
-use super::{Scene, SceneHit, SceneMesh, SceneRay};
+use rayon::prelude::*;
+
+use super::{Scene, SceneHit, SceneMesh, SceneRay, BATCH_GRAIN};
 use crate::all_hits::AllHits;
 use crate::bvh::layout::AnyLayout;
 use crate::geometry::{PreparedRay, Ray};
@@ -22,7 +24,7 @@ impl Scene {
         let mut hits = Vec::new();
         self.for_each_instance_along(ray, |id, instance| {
             let mesh = &self.meshes[instance.mesh as usize];
-            mesh_all_hits(mesh, &instance.carry(&ray.ray), &mut hits);
+            mesh.all_hits(&instance.carry(ray), &mut hits);
             found.extend(hits.iter().map(|h| SceneHit {
                 t: h.t,
                 u: h.u,
@@ -46,10 +48,26 @@ impl Scene {
         let mut hits = Vec::new();
         self.for_each_instance_along(ray, |_, instance| {
             let mesh = &self.meshes[instance.mesh as usize];
-            mesh_all_hits(mesh, &instance.carry(&ray.ray), &mut hits);
+            mesh.all_hits(&instance.carry(ray), &mut hits);
             count += hits.len();
         });
         count
+    }
+
+    /// [`Scene::intersect_all`] of every ray, in parallel on the current rayon pool.
+    pub fn intersect_all_batch(&self, rays: &[SceneRay]) -> Vec<Vec<SceneHit>> {
+        rays.par_iter()
+            .with_min_len(BATCH_GRAIN)
+            .map(|ray| self.intersect_all(ray))
+            .collect()
+    }
+
+    /// [`Scene::count`] of every ray, in parallel on the current rayon pool.
+    pub fn count_batch(&self, rays: &[SceneRay]) -> Vec<usize> {
+        rays.par_iter()
+            .with_min_len(BATCH_GRAIN)
+            .map(|ray| self.count(ray))
+            .collect()
     }
 
     /// Calls `visit` with every live instance the ray sees (by mask) whose world box its whole
@@ -70,15 +88,17 @@ impl Scene {
     }
 }
 
-/// Every hit of the (local) `ray` on `mesh`, sorted by `(t, prim)`: the wide layouts' all-hits
-/// traversal, or for the layouts that have none (recursive, skip, ordered) every triangle
-/// tested in turn, which answers the same list.
-fn mesh_all_hits(mesh: &SceneMesh, ray: &Ray, hits: &mut Vec<Hit>) {
-    match &mesh.layout {
-        AnyLayout::Wide4(layout) => layout.all_hits(ray, hits),
-        AnyLayout::Wide8(layout) => layout.all_hits(ray, hits),
-        AnyLayout::Recursive(_) | AnyLayout::Skip(_) | AnyLayout::Ordered(_) => {
-            BruteForce::new(&mesh.mesh).all_hits(ray, hits)
+impl AllHits for SceneMesh {
+    /// Every hit of the (local) `ray` on the mesh, sorted by `(t, prim)`: the wide layouts'
+    /// all-hits traversal, or for the layouts that have none (recursive, skip, ordered) every
+    /// triangle tested in turn, which answers the same list.
+    fn all_hits(&self, ray: &Ray, hits: &mut Vec<Hit>) {
+        match &self.layout {
+            AnyLayout::Wide4(layout) => layout.all_hits(ray, hits),
+            AnyLayout::Wide8(layout) => layout.all_hits(ray, hits),
+            AnyLayout::Recursive(_) | AnyLayout::Skip(_) | AnyLayout::Ordered(_) => {
+                BruteForce::new(&self.mesh).all_hits(ray, hits)
+            }
         }
     }
 }

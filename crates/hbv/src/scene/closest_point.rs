@@ -19,7 +19,9 @@ use glam::DVec3;
 use super::instance::{Instance, InstanceState};
 use std::sync::Arc;
 
-use super::{Scene, SceneMesh, SceneRay, SceneStructure};
+use rayon::prelude::*;
+
+use super::{Scene, SceneMesh, SceneRay, SceneStructure, BATCH_GRAIN};
 use crate::geometry::Aabb;
 use crate::proximity::{closest_point_on_triangle, ClosestPointTree, NearestPointSearch};
 
@@ -56,6 +58,27 @@ impl Scene {
     /// notes).
     pub fn closest_point(&self, p: DVec3) -> Option<SceneClosestPoint> {
         self.nearest_points().closest_point(p)
+    }
+
+    /// The nearest surface point to each of `points` among the live instances whose mask
+    /// shares a bit with `masks[i]` (every instance whose mask is not zero when `masks` is
+    /// `None`), in parallel on the current rayon pool. Panics if `masks` is not as long as
+    /// `points`.
+    pub fn closest_point_batch(
+        &self,
+        points: &[DVec3],
+        masks: Option<&[u32]>,
+    ) -> Vec<Option<SceneClosestPoint>> {
+        if let Some(masks) = masks {
+            assert_eq!(masks.len(), points.len(), "one mask per point");
+        }
+        let search = self.nearest_points();
+        points
+            .par_iter()
+            .enumerate()
+            .with_min_len(BATCH_GRAIN)
+            .map(|(i, p)| search.closest_point_with_mask(*p, masks.map_or(SceneRay::ALL, |m| m[i])))
+            .collect()
     }
 }
 

@@ -2,7 +2,7 @@
 
 use glam::{DVec3, Vec3};
 
-use super::InstanceTransform;
+use super::{InstanceTransform, SceneRay};
 use crate::geometry::directed_rounding::{f32_above, f32_below};
 use crate::geometry::{Aabb, PreparedRay, Ray, Triangle};
 
@@ -59,13 +59,13 @@ impl Instance {
     /// the same parameter in both spaces (the local point at `t` is `A^-1` of the world one),
     /// and `[tmin, tmax]` carries over unchanged.
     #[inline]
-    pub fn carry(&self, ray: &Ray) -> Ray {
+    pub fn carry(&self, ray: &SceneRay) -> Ray {
         let inverse = self.transform.inverse();
         Ray {
-            origin: inverse.transform_point3(ray.origin.as_dvec3()).as_vec3(),
-            direction: (inverse.matrix3 * ray.direction.as_dvec3()).as_vec3(),
-            tmin: ray.tmin,
-            tmax: ray.tmax,
+            origin: inverse.transform_point3(ray.origin()).as_vec3(),
+            direction: (inverse.matrix3 * ray.ray.direction.as_dvec3()).as_vec3(),
+            tmin: ray.ray.tmin,
+            tmax: ray.ray.tmax,
         }
     }
 
@@ -160,7 +160,7 @@ mod tests {
         .unwrap();
         let instance = Instance::new(0, transform, 1, &Aabb::EMPTY);
         let ray = Ray::new(Vec3::new(0.5, -1.0, 2.0), Vec3::new(1.0, 0.25, -0.5));
-        let local = instance.carry(&ray);
+        let local = instance.carry(&SceneRay::new(ray));
         let back = transform
             .affine()
             .transform_point3(local.at(3.0).as_dvec3());

@@ -74,6 +74,8 @@ impl Scene {
         transform: InstanceTransform,
     ) -> Result<(), SceneError> {
         let index = self.live_index(instance)?;
+        let mesh = &self.meshes[self.instances[index].mesh as usize];
+        let transform = mesh.placement(transform)?;
         self.place_instance(index, transform);
         Ok(())
     }

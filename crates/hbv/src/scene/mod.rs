@@ -94,7 +94,9 @@ mod brute_force;
 mod closest_point;
 mod error;
 mod gltf;
+mod gltf_write;
 mod grown_box_lanes;
+mod inside;
 mod instance;
 mod live;
 mod mesh_motion;
@@ -123,7 +125,7 @@ use crate::geometry::{Aabb, PreparedRay, Ray};
 use crate::mesh::{MeshError, TriangleMesh};
 use crate::proximity::ClosestPointTree;
 use crate::query::Accelerator;
-use glam::Vec3;
+use glam::{DAffine3, DVec3, Vec3};
 use instance::{Instance, InstanceState};
 use top_level::TopLevel;
 
@@ -139,7 +141,12 @@ pub struct InstanceId(pub u32);
 /// A mesh of a scene with its structure, built once however many instances place it.
 #[derive(Clone, Debug)]
 struct SceneMesh {
+    /// The vertices as stored: relative to `origin` ([`Scene::add_mesh_f64`]).
     mesh: TriangleMesh,
+    /// Where the stored vertices' origin lies in the coordinates the mesh was given in: zero,
+    /// or a float64 mesh's centre. Every instance's transform is composed with the translation
+    /// by it when placed, so instances place the mesh as given.
+    origin: DVec3,
     /// `mesh.bounds()`, kept for placing and moving its instances.
     bounds: Aabb,
     layout: AnyLayout,
@@ -149,6 +156,17 @@ struct SceneMesh {
     /// The mesh's nearest-point search tree: made by the first nearest-point query that
     /// needs it, shared by every later one, dropped when the vertices move.
     search: OnceLock<Arc<ClosestPointTree>>,
+}
+
+impl SceneMesh {
+    /// The transform that places the stored vertices where `transform` places the mesh as
+    /// given: `transform` itself, or for a float64 mesh stored relative to `c`, `(A, A c + b)`.
+    fn placement(&self, transform: InstanceTransform) -> Result<InstanceTransform, SceneError> {
+        if self.origin == DVec3::ZERO {
+            return Ok(transform);
+        }
+        InstanceTransform::new(transform.affine() * DAffine3::from_translation(self.origin))
+    }
 }
 
 /// Meshes, their instances and the top-level BVH over the instances (module notes).
@@ -197,10 +215,61 @@ impl Scene {
     pub fn add_mesh(&mut self, mesh: TriangleMesh) -> MeshId {
         let s = &self.structure;
         let tree = s.builder.build(&mesh, &s.builder_options);
+        self.add_built_mesh(mesh, &tree)
+    }
+
+    /// Adds `mesh` with the BVH `tree` already built over it (by any builder), laid out as the
+    /// scene's structure says: no second build.
+    pub fn add_built_mesh(&mut self, mesh: TriangleMesh, tree: &BuildTree) -> MeshId {
+        let s = &self.structure;
+        let layout = s.layout.lay_out(tree, &mesh, &s.layout_options);
+        self.push_mesh(mesh, layout, DVec3::ZERO)
+    }
+
+    /// Adds a mesh given in float64, for coordinates far from the origin (a building at UTM
+    /// `(500000, 5000000, 0)`): its vertices are stored in float32 relative to the centre `c`
+    /// of their box, and every instance's transform `(A, b)` becomes `(A, A c + b)` in f64.
+    /// The mesh then answers as precisely as it would at the origin (the scene's accuracy
+    /// bound, module notes, with the stored mesh's size for `S` and the ray's origin as close
+    /// as [`SceneRay::from_f64`] keeps it). [`Scene::mesh`] returns the stored, relative mesh.
+    ///
+    /// Refused, naming the vertex or face, for a coordinate that is not finite, an index out of
+    /// range, or a vertex farther than [`MAX_COORDINATE`](crate::mesh::MAX_COORDINATE) from the
+    /// centre.
+    pub fn add_mesh_f64(
+        &mut self,
+        positions: &[DVec3],
+        triangles: &[[u32; 3]],
+    ) -> Result<MeshId, MeshError> {
+        if let Some(vertex) = positions.iter().position(|p| !p.is_finite()) {
+            return Err(MeshError::invalid(
+                crate::mesh::MeshSource::Arrays,
+                format!("vertex {vertex}"),
+                format!("coordinate {} is not finite", positions[vertex]),
+            ));
+        }
+        let (lo, hi) = positions.iter().fold(
+            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
+        let centre = if positions.is_empty() {
+            DVec3::ZERO
+        } else {
+            lo * 0.5 + hi * 0.5
+        };
+        let relative = positions.iter().map(|p| (*p - centre).as_vec3()).collect();
+        let mesh = TriangleMesh::new(relative, triangles.to_vec())?;
+        let s = &self.structure;
+        let tree = s.builder.build(&mesh, &s.builder_options);
         let layout = s.layout.lay_out(&tree, &mesh, &s.layout_options);
+        Ok(self.push_mesh(mesh, layout, centre))
+    }
+
+    fn push_mesh(&mut self, mesh: TriangleMesh, layout: AnyLayout, origin: DVec3) -> MeshId {
         let bounds = mesh.bounds();
         self.meshes.push(SceneMesh {
             mesh,
+            origin,
             bounds,
             layout,
             tree: None,
@@ -223,6 +292,7 @@ impl Scene {
                 meshes: self.meshes.len(),
             });
         };
+        let transform = scene_mesh.placement(transform)?;
         let instance = Instance::new(mesh.0, transform, mask, &scene_mesh.bounds);
         self.widen_box_growth(&instance);
         self.pending.push(self.instances.len() as u32);
@@ -323,7 +393,7 @@ impl Scene {
             ray.sees(instance.mask)
                 && self.meshes[instance.mesh as usize]
                     .layout
-                    .occluded(&instance.carry(&ray.ray))
+                    .occluded(&instance.carry(ray))
         };
         let mut occluded = false;
         let mut prepared = PreparedRay::new(&ray.ray);
@@ -380,7 +450,7 @@ impl Scene {
         if !ray.sees(instance.mask) {
             return;
         }
-        let world = ray.ray.with_interval(ray.ray.tmin, prepared.tmax);
+        let world = ray.with_interval(ray.ray.tmin, prepared.tmax);
         let layout = &self.meshes[instance.mesh as usize].layout;
         let Some(hit) = layout.intersect(&instance.carry(&world)) else {
             return;

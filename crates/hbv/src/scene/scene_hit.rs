@@ -1,16 +1,23 @@
 //! `SceneRay` (a ray with its mask) and `SceneHit` (a hit with its instance and normal).
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use crate::geometry::Ray;
 
 /// A world-space ray and the instances it sees: instance `i` is seen only if
 /// `mask & mask_i != 0` (a lidar that ignores its own vehicle gives the vehicle a bit its rays
 /// leave out).
+///
+/// A ray made by [`SceneRay::from_f64`] keeps its origin to about `2^-48 |o|` (float32 alone
+/// holds `2^-24 |o|`: decimetres at UTM coordinates): `ray.origin` is its float32 value, used to
+/// walk the top level, and the rest is kept beside it for carrying the ray into each instance's
+/// space ([`SceneRay::origin`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct SceneRay {
     pub ray: Ray,
     pub mask: u32,
+    /// `o - ray.origin` rounded to f32, for an origin `o` given in f64; zero otherwise.
+    origin_rest: Vec3,
 }
 
 impl SceneRay {
@@ -22,6 +29,32 @@ impl SceneRay {
         Self {
             ray,
             mask: Self::ALL,
+            origin_rest: Vec3::ZERO,
+        }
+    }
+
+    /// A ray from `origin` along `direction` over `[0, +inf]` that sees every instance, its
+    /// origin kept to about `2^-48 |origin|` (type notes). The direction is rounded to f32 (a
+    /// relative error, as harmless far from the origin as near it).
+    pub fn from_f64(origin: DVec3, direction: DVec3) -> Self {
+        let rounded = origin.as_vec3();
+        Self {
+            origin_rest: (origin - rounded.as_dvec3()).as_vec3(),
+            ..Self::new(Ray::new(rounded, direction.as_vec3()))
+        }
+    }
+
+    /// The origin as precisely as it is known: `ray.origin` plus the rest an f64 origin had.
+    #[inline]
+    pub fn origin(&self) -> DVec3 {
+        self.ray.origin.as_dvec3() + self.origin_rest.as_dvec3()
+    }
+
+    /// The same ray over `[tmin, tmax]`.
+    pub fn with_interval(self, tmin: f32, tmax: f32) -> Self {
+        Self {
+            ray: self.ray.with_interval(tmin, tmax),
+            ..self
         }
     }
 
