@@ -96,6 +96,7 @@ mod closest_point;
 mod error;
 mod gltf;
 mod gltf_write;
+mod grown_box_lanes;
 mod inside;
 mod instance;
 mod live;
@@ -106,6 +107,7 @@ mod structure;
 mod summary;
 mod top_level;
 mod transform;
+mod wide_top_level;
 
 pub use brute_force::FlattenedScene;
 pub use closest_point::{SceneClosestPoint, SceneNearestPoints};
