@@ -25,8 +25,6 @@ from fractions import Fraction
 
 import numpy as np
 
-import hbv
-
 
 def parse_args():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -65,15 +63,18 @@ def plausible(tris, o, d, tmin, tmax):
     return np.nonzero(near | grazing | ~np.isfinite(t))[0]
 
 
-def exact_hits(tris, candidates, o, d, tmin, tmax):
-    """(t, prim) of every candidate triangle the ray meets within [tmin, tmax], exactly."""
+def exact_hits(tris, candidates, o, d, tmin, tmax, corners=None):
+    """(t, prim) of every candidate triangle the ray meets within [tmin, tmax], exactly.
+    `corners(k)`, when given, returns triangle k's three vertices as exact `Fraction` lists
+    (a scene's world vertices); otherwise they are `tris[k]`'s floats."""
     fr = lambda v: [Fraction(float(x)) for x in v]
+    corners = corners or (lambda k: [fr(tris[k, j]) for j in range(3)])
     O, D = fr(o), fr(d)
     lo = Fraction(float(tmin))
     hi = Fraction(float(tmax)) if np.isfinite(tmax) else None
     hits = []
     for k in candidates:
-        A, B, C = (fr(tris[k, j]) for j in range(3))
+        A, B, C = corners(k)
         e1 = [B[i] - A[i] for i in range(3)]
         e2 = [C[i] - A[i] for i in range(3)]
         n = [e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]]
@@ -98,6 +99,8 @@ def exact_hits(tris, candidates, o, d, tmin, tmax):
 
 
 def main():
+    import hbv
+
     args = parse_args()
     mesh = hbv.load(args.mesh)
     tris = mesh.vertices[mesh.faces]

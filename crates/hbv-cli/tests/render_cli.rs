@@ -165,41 +165,62 @@ fn outputs_are_written_all_or_none() {
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
 
-/// The example field of instances renders as a two-level scene on a fresh clone; a run that
-/// asks the two-level scene for a heatmap of counted work is refused before rendering.
+/// The example field of instances renders as a two-level scene on a fresh clone, with its object
+/// caches and a heatmap of its counted work (the same picture with the caches off); a run that
+/// asks the two-level scene for the uniform grid is refused before rendering.
 #[test]
 fn the_field_of_instances_renders_as_a_two_level_scene() {
     let dir = tempfile::tempdir().unwrap();
     let field = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/field.toml");
     let field = field.to_str().unwrap();
-    let mut args = vec!["render", field, "--json"];
-    args.extend(SMALL);
-    let o = hbv_in(dir.path(), &args);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert!(report["instances"].as_u64().unwrap() > 3000);
-    assert_eq!(report["meshes"], 4);
-    assert!(report["triangles"].as_u64().unwrap() > 1_000_000);
-    assert!(report["structure"]
-        .as_str()
-        .unwrap()
-        .starts_with("two-level"));
-    assert!(report["by_kind"]["shadow"]["cache"].is_null());
-    assert!(dir.path().join("render.png").exists());
+    let mut images = Vec::new();
+    let heatmaps: &[&str] = &["--pass", "nodes", "--pass", "triangles"];
+    for (out, extra) in [("cached.png", heatmaps), ("plain.png", &["--no-cache"])] {
+        let mut args = vec!["render", field, "-o", out, "--json"];
+        args.extend(SMALL);
+        args.extend(extra);
+        let o = hbv_in(dir.path(), &args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        assert!(report["instances"].as_u64().unwrap() > 3000);
+        assert_eq!(report["meshes"], 4);
+        assert!(report["triangles"].as_u64().unwrap() > 1_000_000);
+        assert!(report["structure"]
+            .as_str()
+            .unwrap()
+            .starts_with("two-level"));
+        assert!(report["tests_per_ray"].as_f64().unwrap() > 1.0);
+        let shadow = &report["by_kind"]["shadow"];
+        if extra.contains(&"--no-cache") {
+            assert!(shadow["cache"].is_null());
+        } else {
+            let lookups = shadow["cache"]["lookups"].as_u64().unwrap();
+            assert_eq!(lookups, shadow["rays"].as_u64().unwrap());
+            let primary = &report["by_kind"]["primary"]["cache"];
+            assert!(primary["hit_rate"].as_f64().unwrap() > 0.0);
+            for pass in ["nodes", "triangles"] {
+                let heat = image::open(dir.path().join(format!("cached.{pass}.png"))).unwrap();
+                assert!(heat.height() > 24, "{pass}: the legend below the image");
+            }
+        }
+        images.push(std::fs::read(dir.path().join(out)).unwrap());
+    }
+    assert!(images[0] == images[1], "the caches change the picture");
 
     let mut args = vec![
         "render",
         field,
         "-o",
-        "heat.png",
+        "grid.png",
         "--instancing",
         "two-level",
+        "--primary",
+        "grid",
     ];
     args.extend(SMALL);
-    args.extend(["--pass", "nodes"]);
     let o = hbv_in(dir.path(), &args);
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("needs --instancing flat"), "{err}");
-    assert!(!dir.path().join("heat.png").exists());
+    assert!(!dir.path().join("grid.png").exists());
 }

@@ -27,7 +27,7 @@
 //! let two_level = SceneTracer::two_level(Arc::new(scene.two_level(Default::default())));
 //! let frame = render(&scene, &two_level, &RenderConfig::default());
 //! assert_eq!(frame.film.radiance.len(), 16 * 12);
-//! // The flattened scene, for any accelerator, the object caches and the cost heatmaps.
+//! // The flattened scene, for any accelerator (the uniform grid too).
 //! let mesh = scene.flat_mesh();
 //! let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(mesh);
 //! let bvh: Arc<dyn hbv::Accelerator> = Arc::new(Wide8Layout::new(&tree, mesh));

@@ -51,10 +51,10 @@ pub struct Frame {
 /// Sample `s` of pixel `(x, y)` draws its random numbers from [`PixelSampler`] seeded with
 /// `y · width + x` and runs entirely on one thread, and the film is assembled in pixel order, so
 /// the image does not depend on the number of threads or the order tiles finish in. Each tile
-/// gets fresh object caches ([`SceneTracer::tally`], built over the flattened scene's mesh, the
-/// mesh a flat tracer's accelerators must come from); caches change the work, never a hit. With one
-/// sample per pixel the primary ray goes through the pixel's centre; with more, each sample is
-/// jittered uniformly inside the pixel.
+/// gets fresh object caches ([`SceneTracer::tally`]: over the two-level scene, or over the
+/// flattened scene's mesh, the mesh a flat tracer's accelerators must come from); caches change
+/// the work, never a hit. With one sample per pixel the primary ray goes through the pixel's
+/// centre; with more, each sample is jittered uniformly inside the pixel.
 pub fn render(scene: &Scene, tracer: &SceneTracer, config: &RenderConfig) -> Frame {
     let settings = scene.settings;
     let (width, height) = (settings.width, settings.height);

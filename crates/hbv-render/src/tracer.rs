@@ -7,9 +7,10 @@
 //!
 //! A tracer traces either the two-level scene ([`SceneTracer::two_level`]: hbv's
 //! [`hbv::scene::Scene`], one BVH per mesh and a top level over the instances) or the flattened
-//! scene ([`SceneTracer::new`]: any accelerator per ray kind over one world-space mesh, with the
-//! object caches and the counted queries). The two-level scene has neither caches nor counted
-//! queries: its rays are counted and timed, their work is not.
+//! scene ([`SceneTracer::new`]: any accelerator per ray kind over one world-space mesh). Both go
+//! through the object caches [`QueryCacheConfig`] enables (the mesh caches of `hbv::cache` over
+//! the flattened scene, the scene caches keyed by `(instance, prim)` over the two-level one), and
+//! both count their work when asked (the counted queries).
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -18,7 +19,7 @@ use hbv::geometry::Ray;
 use hbv::scene::SceneRay;
 use hbv::{Accelerator, TraversalStats};
 
-use crate::query_caches::{QueryCacheConfig, QueryCaches};
+use crate::query_caches::{FlatQueryCaches, QueryCacheConfig, SceneQueryCaches};
 use crate::ray_kind::{RayKind, RayStats};
 use crate::scene::{HitFace, Scene, SurfaceHit};
 
@@ -53,7 +54,13 @@ pub struct RayTally<'a> {
     pub count_work: bool,
     /// Time every query (two clock reads per ray).
     pub time_queries: bool,
-    caches: Option<QueryCaches<'a>>,
+    caches: Option<TallyCaches<'a>>,
+}
+
+/// One render thread's object caches, over the structures of the tracer that made them.
+enum TallyCaches<'a> {
+    Flat(FlatQueryCaches<'a>),
+    TwoLevel(SceneQueryCaches<'a>),
 }
 
 impl RayTally<'static> {
@@ -73,8 +80,10 @@ impl RayTally<'_> {
     /// The totals, with the caches' hits and misses per ray kind.
     pub fn into_stats(self) -> RayStats {
         let mut stats = self.stats;
-        if let Some(caches) = &self.caches {
-            stats.cache = caches.stats();
+        match &self.caches {
+            Some(TallyCaches::Flat(caches)) => stats.cache = caches.stats(),
+            Some(TallyCaches::TwoLevel(caches)) => stats.cache = caches.stats(),
+            None => {}
         }
         stats
     }
@@ -113,11 +122,13 @@ impl SceneTracer {
     }
 
     /// Traces every ray with `scene`, the two-level form of the scene rendered
-    /// ([`Scene::two_level`]). No caches: they are made for one mesh.
+    /// ([`Scene::two_level`]), through the default caches ([`QueryCacheConfig::default`]: the
+    /// scene's own, [`hbv::cache::SceneShadowCache`] and [`hbv::cache::SceneLastHitCache`])
+    /// when tallies come from [`SceneTracer::tally`].
     pub fn two_level(scene: Arc<hbv::scene::Scene>) -> Self {
         SceneTracer {
             structures: Structures::TwoLevel(scene),
-            caches: QueryCacheConfig::none(),
+            caches: QueryCacheConfig::default(),
         }
     }
 
@@ -126,13 +137,8 @@ impl SceneTracer {
         matches!(self.structures, Structures::TwoLevel(_))
     }
 
-    /// The same tracer with other caches (ignored by a two-level tracer, which has none).
+    /// The same tracer with other caches.
     pub fn with_caches(self, caches: QueryCacheConfig) -> Self {
-        let caches = if self.is_two_level() {
-            QueryCacheConfig::none()
-        } else {
-            caches
-        };
         SceneTracer { caches, ..self }
     }
 
@@ -142,9 +148,9 @@ impl SceneTracer {
     }
 
     /// A tally for one render thread of `scene`, holding that thread's caches (a shadow cache
-    /// per light, a last-hit cache per cached intersection ray kind) over the tracer's
-    /// accelerators, which must have been built over `scene`'s flattened mesh: the caches test
-    /// its triangles. A two-level tracer's tally has no caches and counts no work.
+    /// per light, a last-hit cache per cached intersection ray kind). A flat tracer's caches
+    /// wrap its accelerators, which must have been built over `scene`'s flattened mesh: the
+    /// caches test its triangles. A two-level tracer's caches wrap its two-level scene.
     pub fn tally<'a>(
         &'a self,
         scene: &'a Scene,
@@ -156,15 +162,21 @@ impl SceneTracer {
                 intersection,
                 shadow,
             } => RayTally {
-                caches: Some(QueryCaches::new(
+                caches: Some(TallyCaches::Flat(FlatQueryCaches::new(
                     self.caches,
                     scene.flat_mesh(),
                     intersection.as_ref(),
                     shadow.as_ref(),
-                )),
+                ))),
                 ..RayTally::new(count_work, time_queries)
             },
-            Structures::TwoLevel(_) => RayTally::new(false, time_queries),
+            Structures::TwoLevel(two_level) => RayTally {
+                caches: Some(TallyCaches::TwoLevel(SceneQueryCaches::over_scene(
+                    self.caches,
+                    two_level,
+                ))),
+                ..RayTally::new(count_work, time_queries)
+            },
         }
     }
 
@@ -177,7 +189,10 @@ impl SceneTracer {
         let mut work = TraversalStats::default();
         let hit = match &self.structures {
             Structures::Flat { intersection, .. } => {
-                let cache = tally.caches.as_mut().and_then(|c| c.last_hit(kind));
+                let cache = match &mut tally.caches {
+                    Some(TallyCaches::Flat(caches)) => caches.last_hit(kind),
+                    _ => None,
+                };
                 let hit = match (cache, tally.count_work) {
                     (Some(cache), true) => cache.intersect_counted(ray, &mut work),
                     (Some(cache), false) => cache.intersect(ray),
@@ -192,7 +207,18 @@ impl SceneTracer {
                 })
             }
             Structures::TwoLevel(scene) => {
-                scene.intersect(&SceneRay::new(*ray)).map(|h| SurfaceHit {
+                let ray = SceneRay::new(*ray);
+                let cache = match &mut tally.caches {
+                    Some(TallyCaches::TwoLevel(caches)) => caches.last_hit(kind),
+                    _ => None,
+                };
+                let hit = match (cache, tally.count_work) {
+                    (Some(cache), true) => cache.intersect_counted(&ray, &mut work),
+                    (Some(cache), false) => cache.intersect(&ray),
+                    (None, true) => scene.intersect_counted(&ray, &mut work),
+                    (None, false) => scene.intersect(&ray),
+                };
+                hit.map(|h| SurfaceHit {
                     t: h.t,
                     u: h.u,
                     v: h.v,
@@ -218,7 +244,10 @@ impl SceneTracer {
         let mut work = TraversalStats::default();
         let blocked = match &self.structures {
             Structures::Flat { shadow, .. } => {
-                let cache = tally.caches.as_mut().and_then(|c| c.shadow(light, sample));
+                let cache = match &mut tally.caches {
+                    Some(TallyCaches::Flat(caches)) => caches.shadow(light, sample),
+                    _ => None,
+                };
                 match (cache, tally.count_work) {
                     (Some(cache), true) => cache.occluded_counted(ray, &mut work),
                     (Some(cache), false) => cache.occluded(ray),
@@ -226,7 +255,19 @@ impl SceneTracer {
                     (None, false) => shadow.occluded(ray),
                 }
             }
-            Structures::TwoLevel(scene) => scene.occluded(&SceneRay::new(*ray)),
+            Structures::TwoLevel(scene) => {
+                let ray = SceneRay::new(*ray);
+                let cache = match &mut tally.caches {
+                    Some(TallyCaches::TwoLevel(caches)) => caches.shadow(light, sample),
+                    _ => None,
+                };
+                match (cache, tally.count_work) {
+                    (Some(cache), true) => cache.occluded_counted(&ray, &mut work),
+                    (Some(cache), false) => cache.occluded(&ray),
+                    (None, true) => scene.occluded_counted(&ray, &mut work),
+                    (None, false) => scene.occluded(&ray),
+                }
+            }
         };
         tally.record(kind, work, start);
         tally.stats.shadow_blocked += blocked as u64;

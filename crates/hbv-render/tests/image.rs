@@ -1,6 +1,7 @@
 //! The built-in Cornell box rendered small: compared with the reference image in the repository,
 //! and identical whichever layout, builder, thread count, structure per ray kind (BVH or uniform
-//! grid) and cache setting traced it.
+//! grid) and cache setting traced it; traced as a two-level scene, identical with the caches on
+//! or off.
 //!
 //! Tolerance against the reference (`tests/reference/cornell_64x48.png`, made by this test with
 //! `HBV_UPDATE_REFERENCE=1`): mean absolute difference at most 0.5 (of 255) per channel, and at
@@ -138,7 +139,7 @@ fn image_is_identical_for_every_layout_builder_and_thread_count() {
 }
 
 #[test]
-fn image_is_identical_for_grid_or_bvh_per_ray_kind_with_caches_on_or_off() {
+fn image_is_identical_for_grid_bvh_or_two_level_scene_with_caches_on_or_off() {
     let scene = small_cornell_box();
     let bvh = wide8(&scene);
     let expected = render_traced(
@@ -155,12 +156,24 @@ fn image_is_identical_for_grid_or_bvh_per_ray_kind_with_caches_on_or_off() {
             ..GridConfig::default()
         },
     ));
-    let pairs = [
-        ("grid/grid", grid.clone(), grid.clone()),
-        ("grid/bvh", grid.clone(), bvh.clone()),
-        ("bvh/grid", bvh.clone(), grid.clone()),
-        ("bvh/bvh", bvh.clone(), bvh.clone()),
-        ("unmailboxed grid", unboxed.clone(), unboxed),
+    // The two-level scene is compared with its own uncached picture (its placement rounds
+    // apart from the flattened scene's, so the two may differ at grazing edges).
+    let two_level = SceneTracer::two_level(Arc::new(scene.two_level(Default::default())));
+    let two_level_expected = render_traced(
+        &scene,
+        &two_level.clone().with_caches(QueryCacheConfig::none()),
+        1,
+    );
+    let flat = |primary: &Arc<dyn Accelerator>, shadow: &Arc<dyn Accelerator>| {
+        (SceneTracer::new(primary.clone(), shadow.clone()), &expected)
+    };
+    let tracers = [
+        ("grid/grid", flat(&grid, &grid)),
+        ("grid/bvh", flat(&grid, &bvh)),
+        ("bvh/grid", flat(&bvh, &grid)),
+        ("bvh/bvh", flat(&bvh, &bvh)),
+        ("unmailboxed grid", flat(&unboxed, &unboxed)),
+        ("two-level", (two_level, &two_level_expected)),
     ];
     let caches = [
         ("no caches", QueryCacheConfig::none()),
@@ -181,9 +194,9 @@ fn image_is_identical_for_grid_or_bvh_per_ray_kind_with_caches_on_or_off() {
         ),
     ];
     let mut threads = [1, 3].iter().cycle();
-    for (name, primary, shadow) in &pairs {
+    for (name, (tracer, expected)) in &tracers {
         for (cache_name, cache) in caches {
-            let tracer = SceneTracer::new(primary.clone(), shadow.clone()).with_caches(cache);
+            let tracer = tracer.clone().with_caches(cache);
             let threads = *threads.next().unwrap();
             let frame = render_traced(&scene, &tracer, threads);
             assert!(
@@ -203,6 +216,10 @@ fn image_is_identical_for_grid_or_bvh_per_ray_kind_with_caches_on_or_off() {
                 let lookups = c.hits + c.misses;
                 assert_eq!(lookups, if cached { frame.stats.rays[k] } else { 0 });
             }
+            // Every query counted its work, cached or not, on either structure.
+            let work = frame.stats.total_work();
+            assert_eq!(work.rays, frame.stats.total_rays(), "{name}, {cache_name}");
+            assert!(work.triangles_tested > 0, "{name}, {cache_name}");
         }
     }
 }

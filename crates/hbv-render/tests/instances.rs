@@ -12,7 +12,7 @@ use hbv::bvh::layout::Wide8Layout;
 use hbv::mesh::procedural::icosphere;
 use hbv::TriangleMesh;
 use hbv_render::scene::load_scene;
-use hbv_render::{render, Frame, RenderConfig, Scene, SceneTracer};
+use hbv_render::{render, Frame, QueryCacheConfig, RayKind, RenderConfig, Scene, SceneTracer};
 
 const HEAD: &str = r#"
 [render]
@@ -247,9 +247,87 @@ fn instances_render_as_the_scene_flattened_by_hand() {
     );
     // The glass ball (mirrored) is seen through: its refracted rays are cast.
     assert!(two_level.stats.rays[2] > 0);
-    // The same rays are cast; the two-level scene counts them, not their work.
+    // The same rays are cast, and both count their work.
     assert_eq!(two_level.stats.rays[0], reference.stats.rays[0]);
-    assert_eq!(two_level.stats.total_work().rays, 0);
+    assert_eq!(
+        two_level.stats.total_work().rays,
+        two_level.stats.total_rays()
+    );
+}
+
+/// On the two-level scene of shared, turned, scaled and mirrored meshes, seen through glass and
+/// lit by an area light, the scene's object caches (keyed by instance and prim) and the counted
+/// queries change the work, never the picture: bit for bit the uncached, uncounted one, with
+/// every cache on or off, on one thread or three; the counted work fills the cost heatmaps.
+#[test]
+fn two_level_caches_and_counted_work_leave_the_picture_unchanged() {
+    let (_dir, instanced_path, _) = scenes();
+    let scene = load_scene(&instanced_path).unwrap();
+    let tracer = SceneTracer::two_level(Arc::new(scene.two_level(Default::default())));
+    let on = |threads: usize, caches: QueryCacheConfig, count_work: bool| {
+        let config = RenderConfig {
+            count_work,
+            ..RenderConfig::default()
+        };
+        let traced = tracer.clone().with_caches(caches);
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| render(&scene, &traced, &config))
+    };
+    let plain = on(1, QueryCacheConfig::none(), false);
+    let every_cache = QueryCacheConfig {
+        secondary: true,
+        shadow_per_sample: true,
+        ..QueryCacheConfig::default()
+    };
+    let runs = [
+        (3, QueryCacheConfig::none(), true),
+        (1, QueryCacheConfig::default(), false),
+        (3, QueryCacheConfig::default(), true),
+        (1, every_cache, true),
+    ];
+    for (threads, caches, count_work) in runs {
+        let what = format!("{caches:?}, work counted: {count_work}, {threads} threads");
+        let frame = on(threads, caches, count_work);
+        assert!(frame.film.radiance == plain.film.radiance, "{what}");
+        assert!(frame.film.prim == plain.film.prim, "{what}");
+        assert_eq!(frame.stats.rays, plain.stats.rays, "{what}");
+        assert_eq!(frame.stats.shadow_blocked, plain.stats.shadow_blocked);
+        let work = frame.stats.total_work();
+        let rays = frame.stats.total_rays();
+        assert_eq!(work.rays, if count_work { rays } else { 0 }, "{what}");
+        let heat = frame
+            .film
+            .nodes_visited
+            .iter()
+            .filter(|&&n| n > 0.0)
+            .count();
+        if count_work {
+            assert!(heat * 2 > frame.film.nodes_visited.len(), "{what}: {heat}");
+        } else {
+            assert_eq!(heat, 0, "{what}");
+        }
+        let cache = &frame.stats.cache;
+        let kinds = [
+            RayKind::Primary,
+            RayKind::Reflected,
+            RayKind::Transmitted,
+            RayKind::Shadow { light: 0 },
+        ];
+        for kind in kinds {
+            let (k, c) = (kind.index(), cache[kind.index()]);
+            let cached = caches.caches(kind).then_some(frame.stats.rays[k]);
+            assert_eq!(c.hits + c.misses, cached.unwrap_or(0), "{what}: {kind:?}");
+        }
+        if caches.shadow {
+            assert!(cache[3].hits > 0 && cache[3].hits <= frame.stats.shadow_blocked);
+        }
+        if caches.primary {
+            assert!(cache[0].hits > 0, "{what}");
+        }
+    }
 }
 
 /// Each copy of a grid with random turns, sizes, offsets and materials is drawn from its

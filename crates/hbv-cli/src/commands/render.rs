@@ -57,11 +57,11 @@ impl PassName {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
 pub enum Instancing {
     /// Two-level when some mesh is placed more than once, flat otherwise, and flat whenever the
-    /// run asks for what only the flat scene gives (a grid, the nodes or triangles heatmap, a
-    /// cache diagnostic).
+    /// run asks for the uniform grid (--primary/--shadow grid), which only the flat scene has.
     Auto,
     /// hbv's two-level scene: each mesh's BVH built once (--builder, --layout), a top level
-    /// over the instances. No object caches and no counted work (tests per ray, heatmaps).
+    /// over the instances, with its object caches (keyed by instance and triangle) and counted
+    /// work (tests per ray, heatmaps).
     TwoLevel,
     /// Every instance's triangles copied into one world-space mesh, traced by --primary and
     /// --shadow with the object caches and the counted queries.
@@ -197,19 +197,28 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
     let load_seconds = start.elapsed().as_secs_f64();
 
     let build = args.build.or_builder(BuilderKind::BinnedSah);
-    let only_flat = flat_only_request(args, &passes);
+    let grid = args.primary == AccelName::Grid || args.shadow == AccelName::Grid;
     let two_level = match args.instancing {
         Instancing::Flat => false,
         Instancing::TwoLevel => {
-            if let Some(request) = only_flat {
-                bail!("{request} needs --instancing flat: the two-level scene has no object caches and does not count its work");
+            if grid {
+                bail!("the uniform grid (--primary/--shadow grid) needs --instancing flat: there is no grid over instances");
             }
             true
         }
-        Instancing::Auto => only_flat.is_none() && scene.shares_meshes(),
+        Instancing::Auto => !grid && scene.shares_meshes(),
+    };
+    let caches = if args.no_cache {
+        QueryCacheConfig::none()
+    } else {
+        QueryCacheConfig {
+            secondary: args.cache_secondary,
+            shadow_per_sample: args.shadow_cache_per_sample,
+            ..QueryCacheConfig::default()
+        }
     };
     let mut build_seconds = 0.0;
-    let (tracer, structure, caches) = if two_level {
+    let (tracer, structure) = if two_level {
         let start = Instant::now();
         let structure = SceneStructure {
             builder: build.builder_name(),
@@ -227,8 +236,8 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
             scene.instances.len()
         )
         .to_lowercase();
-        let tracer = SceneTracer::two_level(Arc::new(instanced));
-        (tracer, described, QueryCacheConfig::none())
+        let tracer = SceneTracer::two_level(Arc::new(instanced)).with_caches(caches);
+        (tracer, described)
     } else {
         let start = Instant::now();
         let mesh = &pool
@@ -266,26 +275,17 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         };
         let (primary, primary_name) = chosen(args.primary).expect("built above");
         let (shadow, shadow_name) = chosen(args.shadow).expect("built above");
-        let caches = if args.no_cache {
-            QueryCacheConfig::none()
-        } else {
-            QueryCacheConfig {
-                secondary: args.cache_secondary,
-                shadow_per_sample: args.shadow_cache_per_sample,
-                ..QueryCacheConfig::default()
-            }
-        };
         let tracer = SceneTracer::new(primary, shadow).with_caches(caches);
         let structure = if args.primary == args.shadow {
             primary_name
         } else {
             format!("{primary_name} for intersection rays, {shadow_name} for shadow rays")
         };
-        (tracer, structure, caches)
+        (tracer, structure)
     };
 
     let config = RenderConfig {
-        count_work: !args.no_work_count && !two_level,
+        count_work: !args.no_work_count,
         time_queries: args.time_rays,
         quiet: args.quiet || args.json,
         ..RenderConfig::default()
@@ -326,20 +326,6 @@ pub fn run(args: &RenderArgs) -> anyhow::Result<()> {
         report.print();
     }
     Ok(())
-}
-
-/// What this run asks for that only the flat scene gives, if anything: a grid, a heatmap of
-/// counted work, a cache diagnostic.
-fn flat_only_request(args: &RenderArgs, passes: &[Pass]) -> Option<&'static str> {
-    if args.primary == AccelName::Grid || args.shadow == AccelName::Grid {
-        Some("the uniform grid (--primary/--shadow grid)")
-    } else if passes.iter().any(|p| p.needs_work_counted()) {
-        Some("the nodes and triangles heatmaps")
-    } else if args.cache_secondary || args.shadow_cache_per_sample {
-        Some("a cache diagnostic (--cache-secondary, --shadow-cache-per-sample)")
-    } else {
-        None
-    }
 }
 
 /// Every file this run writes, with the pass it holds (`None`: the OpenEXR file).

@@ -1,6 +1,5 @@
 //! The flattened scene: every instance's triangles copied into one world-space mesh, for the
-//! single-mesh accelerators (any BVH layout, the uniform grid), the object caches and the
-//! counted queries.
+//! single-mesh accelerators (any BVH layout, the uniform grid) and their object caches.
 
 use glam::Vec3;
 use hbv::TriangleMesh;

@@ -4,9 +4,8 @@
 //! instances (an affine map in f64, a material, flat or smooth shading). It is traced either as
 //! a two-level [`hbv::scene::Scene`] ([`Scene::two_level`]: each mesh's BVH built once, a top
 //! level over the instances) or flattened ([`Scene::flat`]: every instance's triangles copied
-//! into one world-space [`TriangleMesh`], for any [`hbv::Accelerator`], the object caches and
-//! the counted queries). Hits of either are turned into shading geometry by
-//! [`Scene::surface`].
+//! into one world-space [`TriangleMesh`], for any [`hbv::Accelerator`]). Hits of either are
+//! turned into shading geometry by [`Scene::surface`].
 
 mod assembly;
 mod cornell_box;

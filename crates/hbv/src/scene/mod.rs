@@ -96,6 +96,7 @@ mod closest_point;
 mod error;
 mod gltf;
 mod gltf_write;
+mod grown_box_lanes;
 mod inside;
 mod instance;
 mod live;
@@ -106,6 +107,7 @@ mod structure;
 mod summary;
 mod top_level;
 mod transform;
+mod wide_top_level;
 
 pub use brute_force::FlattenedScene;
 pub use closest_point::{SceneClosestPoint, SceneNearestPoints};
@@ -303,8 +305,8 @@ impl Scene {
         Ok(InstanceId(self.instances.len() as u32 - 1))
     }
 
-    /// Builds the top-level BVH over the world boxes of every live instance (binned SAH, binary
-    /// nodes).
+    /// Builds the top-level BVH over the world boxes of every live instance (binned SAH, traced
+    /// in 8-wide nodes: `scene/top_level.rs`).
     pub fn build(&mut self) {
         self.top_level = TopLevel::build(self.instances.iter().map(|i| i.world_box));
         self.index_pending();

@@ -1,29 +1,37 @@
-//! `TopLevel`: the binary BVH over the instances' world boxes, built by binned SAH, traced
-//! nearest child first.
+//! `TopLevel`: the BVH over the instances' world boxes, built by binned SAH as a binary tree and
+//! traced in its collapse into wide nodes (`scene/wide_top_level.rs`), nearest child first.
 //!
 //! The mesh builders (`bvh/build/`) build over a mesh's triangles; the top level builds over
-//! boxes, one per instance, so it has its own small builder here. Its nodes are binary; wide
-//! nodes for the top level are a later step.
+//! boxes, one per instance, so it has its own small builder here. Rays walk
+//! [`TOP_LEVEL_WIDTH`]-wide nodes, several boxes tested at once: at least as fast as the binary
+//! tree on every scene measured (BENCHMARKS.md, "Scenes: the top level").
 //!
 //! A live scene changes the tree in place between builds (`scene/live.rs` decides when):
 //! [`TopLevel::refit`] recomputes every box bottom-up, keeping the topology, and
 //! [`TopLevel::insert`] hangs a new leaf where its box grows the tree least. Both keep the one
-//! rule the layout needs: a node's children come after it in `nodes`, so one backwards sweep
-//! sees every child before its parent.
+//! rule the binary tree's sweeps need: a node's children come after it in `nodes`, so one
+//! backwards sweep sees every child before its parent. The wide nodes are collapsed again at
+//! every build and refit; an insertion is walked only after the refit that follows it.
 
-use glam::Vec3;
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
 
-use crate::bvh::layout::TraversalStack;
+use glam::{DVec3, Vec3};
+
+use super::wide_top_level::WideTopLevel;
 use crate::geometry::{Aabb, PreparedRay};
 
-/// A node: its box and, for a leaf, the one instance it holds; an interior node's children are
-/// the nodes `first` and `first + 1`.
+/// How many children a node of the walked tree has (4 or 8).
+pub(super) const TOP_LEVEL_WIDTH: usize = 8;
+
+/// A binary node: its box and, for a leaf, the one instance it holds; an interior node's
+/// children are the nodes `first` and `first + 1`.
 #[derive(Clone, Copy, Debug)]
-struct TopNode {
-    bounds: Aabb,
+pub(super) struct TopNode {
+    pub bounds: Aabb,
     /// Leaf: the instance id. Interior: the index of the first child.
-    first: u32,
-    is_leaf: bool,
+    pub first: u32,
+    pub is_leaf: bool,
 }
 
 /// The top-level tree: one leaf per instance with a nonempty world box (when built; removed
@@ -31,6 +39,10 @@ struct TopNode {
 #[derive(Clone, Debug, Default)]
 pub(crate) struct TopLevel {
     nodes: Vec<TopNode>,
+    /// `nodes` collapsed into wide nodes: what rays walk.
+    wide: WideTopLevel<TOP_LEVEL_WIDTH>,
+    /// Whether `wide` is behind `nodes`: from an insertion to the refit that follows it.
+    stale: bool,
     /// [`TopLevel::cost`] when built: what refits are measured against.
     built_cost: f32,
     /// Instances `0..covered` have their leaf (those whose box was not empty): the ones the
@@ -66,6 +78,8 @@ impl TopLevel {
             .collect();
         let mut top = TopLevel {
             nodes: Vec::with_capacity(2 * items.len()),
+            wide: WideTopLevel::default(),
+            stale: false,
             built_cost: 0.0,
             covered,
         };
@@ -78,7 +92,14 @@ impl TopLevel {
             top.build_node(0, &mut items);
         }
         top.built_cost = top.cost();
+        top.collapse();
         top
+    }
+
+    /// Makes the wide nodes anew from the binary ones.
+    fn collapse(&mut self) {
+        self.wide = WideTopLevel::collapse(&self.nodes);
+        self.stale = false;
     }
 
     pub fn is_empty(&self) -> bool {
@@ -115,6 +136,7 @@ impl TopLevel {
                     .union(&self.nodes[first + 1].bounds)
             };
         }
+        self.collapse();
         holes
     }
 
@@ -127,7 +149,9 @@ impl TopLevel {
     /// root, into the child whose surface area the box grows least (Goldsmith & Salmon 1987's
     /// greedy descent), growing each box on the way; the leaf reached becomes an interior node
     /// over itself and the new leaf, both appended, so children still follow their parent.
+    /// The wide nodes follow at the next [`TopLevel::refit`], which must come before a walk.
     pub fn insert(&mut self, instance: u32, bounds: Aabb) {
+        self.stale = true;
         let leaf = TopNode {
             bounds,
             first: instance,
@@ -183,9 +207,27 @@ impl TopLevel {
         self.built_cost
     }
 
-    /// Every leaf's box and each node's box inside its parent's, and the leaves' instances:
-    /// `(instance, leaf box)` pairs, in node order, for the caller to check against the scene.
+    /// Every leaf's box and each node's box inside its parent's, in the binary tree and in the
+    /// wide one, and both with the same leaves: the leaves' `(instance, box)` pairs, in the
+    /// wide tree's node order, for the caller to check against the scene.
     pub fn check_nesting(&self) -> Result<Vec<(u32, Aabb)>, String> {
+        let binary = self.check_binary_nesting()?;
+        if self.stale {
+            return Err("the wide nodes were not collapsed after an insertion".into());
+        }
+        let wide = self.wide.check_nesting()?;
+        let sorted = |mut leaves: Vec<(u32, Aabb)>| {
+            leaves.sort_by_key(|(id, _)| *id);
+            leaves
+        };
+        if sorted(binary) != sorted(wide.clone()) {
+            return Err("the wide nodes do not hold the binary tree's leaves".into());
+        }
+        Ok(wide)
+    }
+
+    /// [`TopLevel::check_nesting`] of the binary tree: its leaves in node order.
+    fn check_binary_nesting(&self) -> Result<Vec<(u32, Aabb)>, String> {
         let mut leaves = Vec::new();
         for (index, node) in self.nodes.iter().enumerate() {
             if node.is_leaf {
@@ -236,65 +278,84 @@ impl TopLevel {
         self.build_node(first + 1, right);
     }
 
-    /// Walks the instances whose boxes the ray meets within its `[tmin, tmax]`, nearer child
-    /// first, calling `visit(instance, ray)`; `visit` may shrink `ray.tmax` (a closest-hit walk)
-    /// and returns `true` to stop the walk (an any-hit walk).
+    /// Walks the instances whose boxes, grown by `pad` on each side, the ray meets within its
+    /// `[tmin, tmax]`, nearest first, calling `visit(instance, ray)`; `visit` may shrink
+    /// `ray.tmax` (a closest-hit walk) and returns `true` to stop the walk (an any-hit walk).
     ///
-    /// Every box is tested grown by `pad` on each side (see `Scene::box_pad`): the rounding of a
-    /// ray carried into an instance's space moves its points by up to that much in world space,
-    /// and the grown boxes keep every point it could hit. The slab test is [`Aabb::hit_by`]'s,
-    /// with the ray's box margins set for the grown root box.
+    /// Every box is tested grown by `pad` (see `Scene::box_pad`): the rounding of a ray carried
+    /// into an instance's space moves its points by up to that much in world space, and the
+    /// grown boxes keep every point it could hit. The walk is the wide nodes'
+    /// ([`WideTopLevel::walk`]).
     pub fn walk(
         &self,
         ray: &mut PreparedRay,
         pad: f32,
-        mut visit: impl FnMut(u32, &mut PreparedRay) -> bool,
+        visit: impl FnMut(u32, &mut PreparedRay) -> bool,
     ) {
-        let Some(root) = self.nodes.first().filter(|root| !root.bounds.is_empty()) else {
-            // No nodes, or only removed instances' empty leaves.
+        debug_assert!(!self.stale, "a walk between an insertion and its refit");
+        self.wide.walk(ray, pad, visit);
+    }
+}
+
+impl TopLevel {
+    /// Calls `visit(instance, distance)` with the leaves in the order of their boxes' distance
+    /// from `p` (0 inside a box), nearest first, skipping empty boxes, and stops before the
+    /// first leaf farther than the bound `visit` returns (start: +∞). A best-first walk over
+    /// the binary nodes with a priority queue (the branch and bound of nearest-neighbour
+    /// search: a node's box distance bounds every leaf under it from below, so no leaf nearer
+    /// than the bound is passed over). The binary nodes are current after an insertion too.
+    pub fn nearest_first(&self, p: DVec3, mut visit: impl FnMut(u32, f64) -> f64) {
+        let Some(root) = self.nodes.first() else {
             return;
         };
-        let pad = Vec3::splat(pad);
-        let grown = |b: &Aabb| Aabb::new(b.min - pad, b.max + pad);
-        ray.bound_errors_within(&grown(&root.bounds));
-        let Some((root_near, _)) = grown(&root.bounds).intersect_interval(ray) else {
-            return;
-        };
-        // On the machine stack, not allocated per ray; a tree deep enough to need more than 64
-        // entries spills the rest to the heap.
-        let mut stack: TraversalStack<(u32, f32), 64> = TraversalStack::new();
-        stack.push((0, root_near));
-        while let Some((index, near)) = stack.pop() {
-            // A nearer hit found since the push culls the node.
-            if near > ray.box_tmax() {
-                continue;
+        let mut bound = f64::INFINITY;
+        let mut queue = BinaryHeap::new();
+        queue.push(Reverse(NodeDistance(box_distance(&root.bounds, p), 0)));
+        while let Some(Reverse(NodeDistance(distance, index))) = queue.pop() {
+            if distance > bound {
+                break;
             }
-            let node = &self.nodes[index as usize];
+            let node = self.nodes[index as usize];
             if node.is_leaf {
-                if visit(node.first, ray) {
-                    return;
-                }
+                bound = visit(node.first, distance);
                 continue;
             }
-            let (a, b) = (node.first, node.first + 1);
-            let near_a = grown(&self.nodes[a as usize].bounds).intersect_interval(ray);
-            let near_b = grown(&self.nodes[b as usize].bounds).intersect_interval(ray);
-            match (near_a, near_b) {
-                (Some((na, _)), Some((nb, _))) => {
-                    // The farther child waits below the nearer one.
-                    let (near, far) = if na <= nb {
-                        ((a, na), (b, nb))
-                    } else {
-                        ((b, nb), (a, na))
-                    };
-                    stack.push(far);
-                    stack.push(near);
+            for child in [node.first, node.first + 1] {
+                let bounds = &self.nodes[child as usize].bounds;
+                if !bounds.is_empty() {
+                    queue.push(Reverse(NodeDistance(box_distance(bounds, p), child)));
                 }
-                (Some((na, _)), None) => stack.push((a, na)),
-                (None, Some((nb, _))) => stack.push((b, nb)),
-                (None, None) => {}
             }
         }
+    }
+}
+
+/// The distance from `p` to the nearest point of `bounds`, in f64: 0 inside, +∞ for an empty
+/// box.
+fn box_distance(bounds: &Aabb, p: DVec3) -> f64 {
+    if bounds.is_empty() {
+        return f64::INFINITY;
+    }
+    let below = bounds.min.as_dvec3() - p;
+    let above = p - bounds.max.as_dvec3();
+    below.max(above).max(DVec3::ZERO).length()
+}
+
+/// A node's box distance and index, ordered by distance (then index, for a total order).
+#[derive(Clone, Copy, PartialEq)]
+struct NodeDistance(f64, u32);
+
+impl Eq for NodeDistance {}
+
+impl PartialOrd for NodeDistance {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for NodeDistance {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
     }
 }
 

@@ -20,9 +20,10 @@ use super::SceneError;
 /// about a million times relative to the others (`diag(1e-6, 1e-6, 1)` is still accepted):
 /// rays carried into such an instance's space in f32 would lose most of their digits there.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)] // `inverse` first: with an instance's hot fields, what a ray's visit reads.
 pub struct InstanceTransform {
-    affine: DAffine3,
     inverse: DAffine3,
+    affine: DAffine3,
     /// `cof(A) = det(A) · A^-T`: maps a local `(p1 - p0) × (p2 - p0)` to the world one,
     /// `cross(A e1, A e2) = cof(A) (e1 × e2)`, so a mirroring `A` flips normals.
     cofactor: DMat3,
