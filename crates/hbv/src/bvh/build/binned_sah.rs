@@ -102,37 +102,16 @@ impl BinnedSahBuilder {
     fn build_subtree(
         &self,
         prims: &mut [PrimRef],
-        (bounds, centroid_bounds): SideBounds,
+        bounds: SideBounds,
         subtree: Subtree<'_>,
         bins: &mut BinCounts,
         depth: u32,
     ) {
         let n = prims.len();
-        let policy = &self.config.leaf;
-        if policy.is_leaf_without_split(n) {
+        let Some(split) = self.choose_split(prims, &bounds, depth, bins) else {
             return subtree.make_leaf();
-        }
-        // A node of few triangles leaves most bins empty; fewer bins price the same splits
-        // (the trees of the shared scenes change by under 0.01% in SAH) at less cost per node.
-        let grid = BinGrid::new(&centroid_bounds, self.config.bins.min(n.max(4)));
-        let split = if depth < SAH_DEPTH_LIMIT {
-            best_split(prims, &grid, bins)
-        } else {
-            None
         };
-        if policy.is_leaf(n, bounds.surface_area(), split.map(|s| s.weighted_area)) {
-            return subtree.make_leaf();
-        }
-        let (left_count, [left, right]) = match split {
-            // One partition loop per axis, with the axis a constant in it.
-            Some(s) => match s.axis {
-                0 => partition(prims, |c| grid.is_below::<0>(c, s.first_right_bin)),
-                1 => partition(prims, |c| grid.is_below::<1>(c, s.first_right_bin)),
-                _ => partition(prims, |c| grid.is_below::<2>(c, s.first_right_bin)),
-            },
-            None => split_at_object_median(prims, &centroid_bounds),
-        };
-
+        let (left_count, [left, right]) = split.apply(prims);
         let (left_subtree, right_subtree) = subtree.split(left_count);
         let (left_prims, right_prims) = prims.split_at_mut(left_count);
         if n >= PARALLEL_SUBTREE_MIN {
@@ -146,6 +125,66 @@ impl BinnedSahBuilder {
         } else {
             self.build_subtree(left_prims, left, left_subtree, bins, depth + 1);
             self.build_subtree(right_prims, right, right_subtree, bins, depth + 1);
+        }
+    }
+
+    /// How the node over `prims` (box and centres' box `bounds`, at `depth` below the root) is
+    /// split, or `None` when it is a leaf: the cheapest bin boundary by the SAH, or the object
+    /// median where no boundary separates the centres or past [`SAH_DEPTH_LIMIT`], or a leaf as
+    /// [`LeafPolicy`] says. `bins` is this thread's scratch space.
+    pub(crate) fn choose_split(
+        &self,
+        prims: &[PrimRef],
+        (bounds, centroid_bounds): &SideBounds,
+        depth: u32,
+        bins: &mut BinCounts,
+    ) -> Option<NodeSplit> {
+        let n = prims.len();
+        let policy = &self.config.leaf;
+        if policy.is_leaf_without_split(n) {
+            return None;
+        }
+        // A node of few triangles leaves most bins empty; fewer bins price the same splits
+        // (the trees of the shared scenes change by under 0.01% in SAH) at less cost per node.
+        let grid = BinGrid::new(centroid_bounds, self.config.bins.min(n.max(4)));
+        let split = if depth < SAH_DEPTH_LIMIT {
+            best_split(prims, &grid, bins)
+        } else {
+            None
+        };
+        if policy.is_leaf(n, bounds.surface_area(), split.map(|s| s.weighted_area)) {
+            return None;
+        }
+        Some(match split {
+            Some(split) => NodeSplit::Binned { grid, split },
+            None => NodeSplit::Median {
+                centroid_bounds: *centroid_bounds,
+            },
+        })
+    }
+}
+
+/// Where [`BinnedSahBuilder::choose_split`] splits a node.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum NodeSplit {
+    /// At a bin boundary of the node's grid.
+    Binned { grid: BinGrid, split: BinSplit },
+    /// At the object median of the node's centres.
+    Median { centroid_bounds: Aabb },
+}
+
+impl NodeSplit {
+    /// Partitions the node's `prims` in place, the left side first; returns how many went left
+    /// and the box and centroid box of each side.
+    pub(crate) fn apply(&self, prims: &mut [PrimRef]) -> (usize, [SideBounds; 2]) {
+        match self {
+            // One partition loop per axis, with the axis a constant in it.
+            NodeSplit::Binned { grid, split: s } => match s.axis {
+                0 => partition(prims, |c| grid.is_below::<0>(c, s.first_right_bin)),
+                1 => partition(prims, |c| grid.is_below::<1>(c, s.first_right_bin)),
+                _ => partition(prims, |c| grid.is_below::<2>(c, s.first_right_bin)),
+            },
+            NodeSplit::Median { centroid_bounds } => split_at_object_median(prims, centroid_bounds),
         }
     }
 }
@@ -192,7 +231,8 @@ impl BinBox {
 
 /// How centres map to bins: on each axis, `bins` equal slabs of the node's centroid bounds,
 /// `bin = floor((c - lo) · bins / extent)`, clamped to the last bin.
-struct BinGrid {
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct BinGrid {
     lo: Vec3A,
     /// `bins / extent` per axis; 0 on an axis that cannot be binned (zero extent, or an extent
     /// so small or so large that the scale is not a finite positive f32).
@@ -271,7 +311,7 @@ fn centroid(b: &BinBox) -> Vec3A {
 
 /// The bins of the three axes of one node, and room for the sweep over them. Allocated once per
 /// thread of the build and reused by every node it bins (only the bins in use are reset).
-struct BinCounts {
+pub(crate) struct BinCounts {
     boxes: [[BinBox; MAX_BINS]; 3],
     counts: [[u32; MAX_BINS]; 3],
     /// `SA · n` of the bins right of each boundary, filled by the sweep.
@@ -281,7 +321,7 @@ struct BinCounts {
 
 impl BinCounts {
     /// Empty bins on the heap: at 8 KiB they would weigh on the stack of the recursion.
-    fn new_boxed() -> Box<Self> {
+    pub(crate) fn new_boxed() -> Box<Self> {
         Box::new(Self::new())
     }
 
@@ -326,7 +366,7 @@ impl BinCounts {
 /// A split between bins: triangles whose centre is in a bin below `first_right_bin` on `axis`
 /// go left.
 #[derive(Clone, Copy, Debug)]
-struct BinSplit {
+pub(crate) struct BinSplit {
     axis: usize,
     first_right_bin: usize,
     /// `SA(L) · n_L + SA(R) · n_R`.
