@@ -20,6 +20,7 @@
 //! | `ray_packet/` | coherent rays traced eight at a time (8-wide nodes, AVX2) |
 //! | `all_hits.rs` | every hit along a ray |
 //! | `lanes.rs` | lane masks |
+//! | `validate.rs` | the layout's invariants, checked |
 
 mod all_hits;
 mod box_kernels;
@@ -40,6 +41,7 @@ mod root_filter;
 mod stream;
 mod traversal;
 mod triangle_packet;
+mod validate;
 
 use crate::geometry::{Aabb, PreparedRay};
 use kernels::Kernels;
