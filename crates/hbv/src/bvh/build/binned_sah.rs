@@ -314,6 +314,10 @@ fn centroid(b: &BinBox) -> Vec3A {
 pub(crate) struct BinCounts {
     boxes: [[BinBox; MAX_BINS]; 3],
     counts: [[u32; MAX_BINS]; 3],
+    /// A second set of bins for every other triangle of a large node, merged into the first
+    /// after binning and left empty.
+    odd_boxes: [[BinBox; MAX_BINS]; 3],
+    odd_counts: [[u32; MAX_BINS]; 3],
     /// `SA · n` of the bins right of each boundary, filled by the sweep.
     suffix_weighted_area: [[f32; MAX_BINS]; 3],
     suffix_count: [[u32; MAX_BINS]; 3],
@@ -329,6 +333,8 @@ impl BinCounts {
         Self {
             boxes: [[BinBox::EMPTY; MAX_BINS]; 3],
             counts: [[0; MAX_BINS]; 3],
+            odd_boxes: [[BinBox::EMPTY; MAX_BINS]; 3],
+            odd_counts: [[0; MAX_BINS]; 3],
             suffix_weighted_area: [[0.0; MAX_BINS]; 3],
             suffix_count: [[0; MAX_BINS]; 3],
         }
@@ -341,8 +347,38 @@ impl BinCounts {
         }
     }
 
-    /// Bins `prims` into `self`.
-    fn add_prims(&mut self, prims: &[PrimRef], grid: &BinGrid) {
+    /// Bins `prims` into `self`, whose first `bins` bins are in use. In a node of many
+    /// triangles, triangles alternate between two sets of bins, merged after: neighbours in a
+    /// mesh often fall in the same bins, and with one set each update of a bin would wait for
+    /// the previous one (a store and a load in a chain; measured on the dragon's build,
+    /// `build_time --direct`, BENCHMARKS.md "Builds against Embree").
+    fn add_prims(&mut self, prims: &[PrimRef], grid: &BinGrid, bins: usize) {
+        if prims.len() < 4 * bins {
+            return self.add_prims_to_one_set(prims, grid);
+        }
+        let mut pairs = prims.chunks_exact(2);
+        for pair in &mut pairs {
+            let (a, b) = (BinBox::of(&pair[0]), BinBox::of(&pair[1]));
+            let (ka, kb) = (grid.bins_of(centroid(&a)), grid.bins_of(centroid(&b)));
+            for axis in 0..3 {
+                self.boxes[axis][ka[axis]].grow(&a);
+                self.counts[axis][ka[axis]] += 1;
+                self.odd_boxes[axis][kb[axis]].grow(&b);
+                self.odd_counts[axis][kb[axis]] += 1;
+            }
+        }
+        self.add_prims_to_one_set(pairs.remainder(), grid);
+        for axis in 0..3 {
+            for k in 0..bins {
+                self.boxes[axis][k].grow(&self.odd_boxes[axis][k]);
+                self.counts[axis][k] += self.odd_counts[axis][k];
+            }
+            self.odd_boxes[axis][..bins].fill(BinBox::EMPTY);
+            self.odd_counts[axis][..bins].fill(0);
+        }
+    }
+
+    fn add_prims_to_one_set(&mut self, prims: &[PrimRef], grid: &BinGrid) {
         for p in prims {
             let b = BinBox::of(p);
             let k = grid.bins_of(centroid(&b));
@@ -386,7 +422,7 @@ fn best_split(prims: &[PrimRef], grid: &BinGrid, bins: &mut BinCounts) -> Option
             .par_chunks(BINNING_CHUNK)
             .map(|chunk| {
                 let mut counts = BinCounts::new_boxed();
-                counts.add_prims(chunk, grid);
+                counts.add_prims(chunk, grid, n_bins);
                 counts
             })
             .reduce_with(|mut a, b| {
@@ -395,7 +431,7 @@ fn best_split(prims: &[PrimRef], grid: &BinGrid, bins: &mut BinCounts) -> Option
             });
         bins.merge(&merged.expect("a large node has triangles"), n_bins);
     } else {
-        bins.add_prims(prims, grid);
+        bins.add_prims(prims, grid, n_bins);
     }
 
     // Sweep from the right: `SA · n` of the bins from `b` on, for every boundary `b`. The three
@@ -434,44 +470,48 @@ fn best_split(prims: &[PrimRef], grid: &BinGrid, bins: &mut BinCounts) -> Option
 /// Partitions `prims` in place, those whose centre satisfies `goes_left` first; returns how
 /// many went left and the box and centroid box of each side, gathered on the way.
 fn partition(prims: &mut [PrimRef], goes_left: impl Fn(Vec3A) -> bool) -> (usize, [SideBounds; 2]) {
-    let (mut left, mut right) = (
-        (BinBox::EMPTY, BinBox::EMPTY),
-        (BinBox::EMPTY, BinBox::EMPTY),
-    );
-    let mut classify = |p: &PrimRef| {
-        let b = BinBox::of(p);
-        let c = centroid(&b);
-        let is_left = goes_left(c);
-        let side = if is_left { &mut left } else { &mut right };
-        side.0.grow(&b);
-        side.1.grow(&BinBox { min: c, max: c });
-        is_left
-    };
+    // The four boxes are locals grown on the branch that classified the triangle, so that
+    // they stay in registers (grown through a reference picked per triangle, they were kept
+    // in memory, each update waiting on the last).
+    let (mut left, mut left_centres) = (BinBox::EMPTY, BinBox::EMPTY);
+    let (mut right, mut right_centres) = (BinBox::EMPTY, BinBox::EMPTY);
     // Hoare's scheme, each triangle classified once: `prims[..i]` go left, `prims[j..]` right.
     let (mut i, mut j) = (0, prims.len());
-    while i < j {
-        if classify(&prims[i]) {
+    'scan: while i < j {
+        let b = BinBox::of(&prims[i]);
+        let c = centroid(&b);
+        if goes_left(c) {
+            left.grow(&b);
+            left_centres.grow(&BinBox { min: c, max: c });
             i += 1;
             continue;
         }
+        right.grow(&b);
+        right_centres.grow(&BinBox { min: c, max: c });
         // `prims[i]` goes right: swap it with the last unclassified one that goes left.
         loop {
             j -= 1;
             if j == i {
-                break;
+                break 'scan;
             }
-            if classify(&prims[j]) {
+            let b = BinBox::of(&prims[j]);
+            let c = centroid(&b);
+            if goes_left(c) {
+                left.grow(&b);
+                left_centres.grow(&BinBox { min: c, max: c });
                 prims.swap(i, j);
                 i += 1;
                 break;
             }
+            right.grow(&b);
+            right_centres.grow(&BinBox { min: c, max: c });
         }
     }
     (
         i,
         [
-            (left.0.to_aabb(), left.1.to_aabb()),
-            (right.0.to_aabb(), right.1.to_aabb()),
+            (left.to_aabb(), left_centres.to_aabb()),
+            (right.to_aabb(), right_centres.to_aabb()),
         ],
     )
 }
