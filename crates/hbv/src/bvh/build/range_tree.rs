@@ -37,16 +37,24 @@ impl PrimRef {
 
 /// The non-degenerate triangles of `mesh` in face order (degenerate ones are left out).
 pub(crate) fn prim_refs(mesh: &TriangleMesh) -> Vec<PrimRef> {
+    let prim = |i: usize| PrimRef {
+        bounds: mesh.triangle(i).bounds(),
+        id: i as u32,
+    };
+    if mesh.degenerate_count() == 0 {
+        // The mesh counted its degenerate triangles when it was made: none to test (in f64)
+        // and leave out, so each thread writes its share of the array in place.
+        return (0..mesh.triangle_count())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(prim)
+            .collect();
+    }
     (0..mesh.triangle_count())
         .into_par_iter()
         .with_min_len(4096)
-        .filter_map(|i| {
-            let t = mesh.triangle(i);
-            (!t.is_degenerate()).then(|| PrimRef {
-                bounds: t.bounds(),
-                id: i as u32,
-            })
-        })
+        .filter(|&i| !mesh.triangle(i).is_degenerate())
+        .map(prim)
         .collect()
 }
 

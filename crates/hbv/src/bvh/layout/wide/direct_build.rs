@@ -18,6 +18,13 @@ use rayon::prelude::*;
 /// into a [`Fragment`]; smaller ones by the task of the node above them.
 const TASK_MIN: usize = 4096;
 
+/// Nodes of at least this many triangles, when a wide node is collapsed from them, open their
+/// top levels ahead in parallel ([`DirectBuild::open_ahead`]).
+const OPEN_AHEAD_MIN: usize = 1 << 15;
+
+/// A binary node opened ahead: its `(first, len)` and its two children.
+type Opened = ((usize, usize), [BinaryNode; 2]);
+
 /// A binary node of the build, not yet laid out: triangles `prims[first..first + len]` of the
 /// slice of the wide node being collapsed, their box, the node's depth in the binary tree, and
 /// how it is split (`None`: a leaf).
@@ -99,16 +106,15 @@ impl DirectBuild<'_> {
         }
     }
 
-    /// Splits binary node `node` of the wide node over `prims` (partitioning its triangles) and
-    /// chooses its children's splits.
+    /// Splits binary node `node`, whose triangles are `range` (partitioning them), and chooses
+    /// its children's splits.
     fn open(
         &self,
-        prims: &mut [PrimRef],
+        range: &mut [PrimRef],
         node: &BinaryNode,
         bins: &mut BinCounts,
     ) -> [BinaryNode; 2] {
         let split = node.split.expect("only split nodes are opened");
-        let range = &mut prims[node.first..node.first + node.len];
         let (left_len, [left, right]) = split.apply(range);
         let (left_prims, right_prims) = range.split_at(left_len);
         let depth = node.depth + 1;
@@ -118,17 +124,64 @@ impl DirectBuild<'_> {
         ]
     }
 
+    /// Opens binary node `node` (triangles `range`) and, `levels - 1` levels down, its split
+    /// descendants of [`OPEN_AHEAD_MIN`] triangles or more, the two sides of each node in
+    /// parallel; appends each opened node's range and children to `opened`. The collapse of a
+    /// large node opens these nodes in turn anyway (or, for one it leaves closed, the wide
+    /// node made from it does), one after another: opened ahead, the partitions near the root
+    /// run on all threads instead of one.
+    fn open_ahead(
+        &self,
+        range: &mut [PrimRef],
+        node: &BinaryNode,
+        levels: u32,
+        bins: &mut BinCounts,
+        opened: &mut Vec<Opened>,
+    ) {
+        let children = self.open(range, node, bins);
+        opened.push(((node.first, node.len), children));
+        if levels <= 1 {
+            return;
+        }
+        let (left, right) = range.split_at_mut(children[0].len);
+        let ahead = |range: &mut [PrimRef], child: &BinaryNode, bins: &mut BinCounts| {
+            let mut opened = Vec::new();
+            if child.split.is_some() && child.len >= OPEN_AHEAD_MIN {
+                self.open_ahead(range, child, levels - 1, bins, &mut opened);
+            }
+            opened
+        };
+        let (from_left, from_right) = rayon::join(
+            || ahead(left, &children[0], bins),
+            || ahead(right, &children[1], &mut BinCounts::new_boxed()),
+        );
+        opened.extend(from_left);
+        opened.extend(from_right);
+    }
+
     /// The children of the wide node made from binary node `node` (over all of `prims`), and
     /// how many: its two children, then the split child of largest surface area opened in turn,
     /// until there are `W` or none is split, as [`WideLayout::new`] collapses a build tree.
+    /// Nodes of [`OPEN_AHEAD_MIN`] triangles or more open their top levels ahead, in parallel.
     fn collapse<const W: usize>(
         &self,
         prims: &mut [PrimRef],
         node: &BinaryNode,
         bins: &mut BinCounts,
     ) -> ([BinaryNode; W], usize) {
+        let mut ahead = Vec::new();
+        if node.len >= OPEN_AHEAD_MIN {
+            self.open_ahead(prims, node, W.ilog2(), bins, &mut ahead);
+        }
+        let mut open = |c: &BinaryNode, bins: &mut BinCounts| {
+            let known = ahead.iter().find(|(key, _)| *key == (c.first, c.len));
+            match known {
+                Some((_, children)) => *children,
+                None => self.open(&mut prims[c.first..c.first + c.len], c, bins),
+            }
+        };
         let mut children = [*node; W];
-        let [left, right] = self.open(prims, node, bins);
+        let [left, right] = open(node, bins);
         (children[0], children[1]) = (left, right);
         let mut count = 2;
         while count < W {
@@ -146,7 +199,7 @@ impl DirectBuild<'_> {
             let opened = children[k];
             count -= 1;
             children[k] = children[count];
-            let [left, right] = self.open(prims, &opened, bins);
+            let [left, right] = open(&opened, bins);
             (children[count], children[count + 1]) = (left, right);
             count += 2;
         }
@@ -216,10 +269,10 @@ impl DirectBuild<'_> {
     /// triangles, to be laid out at a node index reserved in `fragment`. Iterative, so that no
     /// depth overflows the call stack; each wide node's children that are split get consecutive
     /// indices, as [`WideLayout::new`] gives them.
-    fn fill<'p, const W: usize>(
+    fn fill<const W: usize>(
         &self,
         fragment: &mut Fragment<W>,
-        mut work: Vec<(&'p mut [PrimRef], BinaryNode, u32)>,
+        mut work: Vec<(&mut [PrimRef], BinaryNode, u32)>,
         bins: &mut BinCounts,
     ) {
         while let Some((prims, root, slot)) = work.pop() {

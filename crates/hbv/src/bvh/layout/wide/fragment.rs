@@ -14,6 +14,7 @@
 
 use super::node::{is_leaf, leaf_reference, leaf_span, WideNode};
 use super::TrianglePacket;
+use rayon::prelude::*;
 
 /// Nodes and triangle packets of one subtree, its root node at index 0, and the parts built by
 /// other tasks below it. References inside are local to the part.
@@ -30,6 +31,21 @@ struct Placed<'a, const W: usize> {
     part: &'a Fragment<W>,
     first_node: u32,
     first_packet: u32,
+}
+
+impl<const W: usize> Placed<'_, W> {
+    /// Child reference `reference` of this part made global.
+    fn relocate(&self, reference: u32) -> u32 {
+        if reference == 0 {
+            // An empty lane, or a graft's (no part's root is a child within it).
+            reference
+        } else if is_leaf(reference) {
+            let (first, count) = leaf_span(reference);
+            leaf_reference(first as u32 + self.first_packet, count as u32)
+        } else {
+            reference + self.first_node
+        }
+    }
 }
 
 impl<const W: usize> Fragment<W> {
@@ -49,40 +65,64 @@ impl<const W: usize> Fragment<W> {
     }
 
     /// The nodes and packets of this part and all parts below it, joined (this part's root
-    /// first), with every reference made global.
+    /// first), with every reference made global. Threads copy contiguous runs of the joined
+    /// arrays, each element from the part that holds it.
     pub fn join(self) -> (Vec<WideNode<W>>, Vec<TrianglePacket>) {
         let mut placed = Vec::new();
-        let (nodes, packets) = self.place(&mut placed, (0, 0));
-        let mut all_nodes = Vec::with_capacity(nodes as usize);
-        let mut all_packets = Vec::with_capacity(packets as usize);
-        for p in &placed {
-            let relocate = |reference: u32| {
-                if reference == 0 {
-                    // An empty lane (no part's root is a child).
-                    reference
-                } else if is_leaf(reference) {
-                    let (first, count) = leaf_span(reference);
-                    leaf_reference(first as u32 + p.first_packet, count as u32)
-                } else {
-                    reference + p.first_node
+        let (node_count, packet_count) = self.place(&mut placed, (0, 0));
+        // Each graft's lane gets its part's root, a node at the part's first index.
+        let grafted: Vec<Vec<(u32, usize, u32)>> = placed
+            .iter()
+            .map(|p| {
+                let roots = p.part.parts.iter().map(|part| {
+                    placed
+                        .iter()
+                        .find(|q| std::ptr::eq(q.part, part))
+                        .expect("every part is placed")
+                        .first_node
+                });
+                let roots: Vec<u32> = roots.collect();
+                (p.part.grafts.iter())
+                    .map(|&(node, lane, part)| (node, lane, roots[part]))
+                    .collect()
+            })
+            .collect();
+        // The part holding global index `i` of the nodes (packets): the last that starts at or
+        // before it and holds some.
+        let part_of = |i: u32, first: fn(&Placed<'_, W>) -> u32, len: fn(&Fragment<W>) -> usize| {
+            let k = placed.partition_point(|p| first(p) <= i) - 1;
+            let k = (0..=k)
+                .rev()
+                .find(|&k| len(placed[k].part) > 0)
+                .expect("a part holds it");
+            (k, (i - first(&placed[k])) as usize)
+        };
+        let nodes = (0..node_count)
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|i| {
+                let (k, local) = part_of(i, |p| p.first_node, |f| f.nodes.len());
+                let p = &placed[k];
+                let node = &p.part.nodes[local];
+                let mut children = node.children.map(|reference| p.relocate(reference));
+                for &(_, lane, root) in grafted[k].iter().filter(|g| g.0 as usize == local) {
+                    children[lane] = root;
                 }
-            };
-            let start = all_nodes.len();
-            all_nodes.extend(p.part.nodes.iter().map(|node| WideNode {
-                boxes: node.boxes,
-                children: node.children.map(relocate),
-            }));
-            for &(node, lane, part) in &p.part.grafts {
-                let root = placed
-                    .iter()
-                    .find(|q| std::ptr::eq(q.part, &p.part.parts[part]))
-                    .expect("every part is placed")
-                    .first_node;
-                all_nodes[start + node as usize].children[lane] = root;
-            }
-            all_packets.extend_from_slice(&p.part.packets);
-        }
-        (all_nodes, all_packets)
+                WideNode {
+                    boxes: node.boxes,
+                    children,
+                }
+            })
+            .collect();
+        let packets = (0..packet_count)
+            .into_par_iter()
+            .with_min_len(1024)
+            .map(|i| {
+                let (k, local) = part_of(i, |p| p.first_packet, |f| f.packets.len());
+                placed[k].part.packets[local]
+            })
+            .collect();
+        (nodes, packets)
     }
 
     /// Appends this part and the parts below it to `placed`, this one at `(first_node,
