@@ -131,13 +131,7 @@ fn subtrees_built_in_parallel_join_into_one_layout() {
 #[test]
 fn empty_degenerate_and_single_triangle_meshes() {
     let ray = Ray::new(Vec3::new(0.1, 0.1, -1.0), Vec3::Z);
-    let empty = TriangleMesh::new(vec![], vec![]).unwrap();
-    let flat = TriangleMesh::new(
-        vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0],
-        vec![[0, 1, 2], [0, 0, 0]],
-    )
-    .unwrap();
-    for mesh in [empty, flat] {
+    for mesh in common::empty_and_all_degenerate_meshes() {
         for (name, layout) in layouts(&mesh, &BinnedSahConfig::default()) {
             assert_eq!(layout.intersect(&ray), None, "{name}");
             assert!(!layout.occluded(&ray), "{name}");

@@ -87,3 +87,50 @@ impl<const W: usize> WideLayout<W> {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::build::BinnedSahConfig;
+    use crate::mesh::procedural::torus;
+    use glam::Vec3;
+
+    #[test]
+    fn broken_layouts_are_found() {
+        let mesh = torus(Vec3::ZERO, 2.0, 0.6, 24, 12);
+        let layout = WideLayout::<8>::build_direct(&mesh, &BinnedSahConfig::default());
+        layout.validate(&mesh).unwrap();
+
+        let mut twice = layout.clone();
+        twice.packets[1].ids[0] = twice.packets[0].ids[0];
+        twice.packets[1].vertices = twice.packets[0].vertices;
+        assert!(twice.validate(&mesh).is_err());
+
+        // A triangle's copy in a lane of its own (not padding) within its leaf.
+        let mut copied = layout.clone();
+        let lanes = (0..4).find(|&k| k > 1 && !copied.packets[0].repeats_previous(k));
+        if let Some(k) = lanes {
+            let packet = &mut copied.packets[0];
+            packet.ids[k] = packet.ids[0];
+            for v in 0..3 {
+                for axis in 0..3 {
+                    packet.vertices[v][axis][k] = packet.vertices[v][axis][0];
+                }
+            }
+            let error = copied.validate(&mesh).unwrap_err().0;
+            assert!(error.contains("in two leaves"), "{error}");
+        }
+
+        let mut moved = layout.clone();
+        moved.packets[0].vertices[0][0][0] += 1.0;
+        assert!(moved.validate(&mesh).is_err());
+
+        let mut shrunk = layout.clone();
+        let root = shrunk.root.unwrap().0 as usize;
+        shrunk.nodes[root].boxes[1][0][0] = shrunk.nodes[root].boxes[0][0][0];
+        assert!(shrunk.validate(&mesh).is_err());
+
+        let other = torus(Vec3::ZERO, 2.0, 0.6, 24, 13);
+        assert!(layout.validate(&other).is_err());
+    }
+}
