@@ -9,6 +9,7 @@ use crate::bvh::layout::binarize::binary_form;
 use crate::bvh::tree::{BuildTree, NodeId};
 use crate::geometry::Aabb;
 use crate::mesh::TriangleMesh;
+use rayon::prelude::*;
 
 impl<const W: usize> WideLayout<W> {
     pub(super) const VALID_WIDTH: () =
@@ -133,7 +134,8 @@ fn collapse<const W: usize>(
 /// The median over `packets` of the largest extent of each packet's box (0 for none).
 pub(super) fn median_packet_extent(packets: &[TrianglePacket]) -> f32 {
     let mut extents: Vec<f32> = packets
-        .iter()
+        .par_iter()
+        .with_min_len(4096)
         .map(|p| {
             let (mut lo, mut hi) = (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY);
             for lane in 0..4 {
