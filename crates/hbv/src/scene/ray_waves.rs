@@ -18,15 +18,20 @@
 //! answer is that least triple over the instances the ray sees, as [`Scene::intersect`]'s.
 //! An instance is left out only where the walk of [`Scene::intersect`] would cull it: its grown
 //! box entered beyond `best + m`, the entry computed as the walk's box test computes it, `m`
-//! the ray's box margin for a box holding every instance ([`PreparedRay::bound_errors_within`]:
-//! at least the walk's own margin), which covers the entry's rounding and the triangle test's.
+//! the ray's box margin ([`PreparedRay::bound_errors_within`]) for a box holding every live
+//! instance's grown world box, as the walk's is for its root box: it covers the entry's
+//! rounding and the triangle test's.
 //! The batch and the single-ray answers of every layout are the same (`stream.rs`), and any
 //! hit is whether some triangle of a seen instance accepts the ray, whatever the order.
 //! `tests/scene_batches.rs` checks the equality on random live scenes.
 
+use std::ops::Range;
+
+use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{Scene, SceneHit, SceneRay};
+use crate::bvh::layout::AnyLayout;
 use crate::geometry::{Aabb, PreparedRay, Ray};
 use crate::query::{Accelerator, Hit};
 
@@ -180,7 +185,8 @@ impl<'a> Wave<'a> {
                         v: hit.v,
                         prim: hit.prim,
                         instance: visit.instance,
-                        normal: glam::Vec3::ZERO,
+                        // Computed once, for the final hit.
+                        normal: Vec3::ZERO,
                     });
                 }
             }
@@ -242,10 +248,7 @@ impl<'a> Wave<'a> {
     }
 
     /// Calls `trace(layout, rays, range)` for each mesh's run of the round's carried rays.
-    fn trace_by_mesh(
-        &self,
-        mut trace: impl FnMut(&crate::bvh::layout::AnyLayout, &[Ray], std::ops::Range<usize>),
-    ) {
+    fn trace_by_mesh(&self, mut trace: impl FnMut(&AnyLayout, &[Ray], Range<usize>)) {
         let mut start = 0;
         while start < self.visits.len() {
             let mesh = self.visits[start].mesh;
