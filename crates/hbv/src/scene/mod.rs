@@ -312,6 +312,11 @@ impl Scene {
         self.index_pending();
     }
 
+    /// How the scene's meshes are built and laid out.
+    pub fn structure(&self) -> &SceneStructure {
+        &self.structure
+    }
+
     pub fn mesh_count(&self) -> usize {
         self.meshes.len()
     }
