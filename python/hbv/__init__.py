@@ -33,7 +33,8 @@ building again.
 
 ``hbv.Scene()`` holds many meshes placed by instances (``add(mesh, transform, mask)``), in one
 two-level BVH: the same queries, answering with the ``instance`` hit and its world ``normal``;
-``hbv.load_scene(path)`` reads a glTF file as one. ``hbv.interpolate`` gives per-vertex
+``hbv.load_scene(path)`` reads a glTF file as one, or a ``.hbv`` scene file that
+``scene.save(path)`` wrote (scenes pickle too). ``hbv.interpolate`` gives per-vertex
 attributes (normals, uv, colours) at hits.
 
 ``hbv.trimesh.RayMeshIntersector`` answers trimesh's ray queries with the same meaning;

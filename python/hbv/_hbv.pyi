@@ -277,7 +277,14 @@ class Scene:
     def closest_point(
         self, points: _Floats, mask: _Mask = None, threads: Optional[int] = None
     ) -> SceneClosestPoints: ...
+    def save(self, path: Union[str, PathLike[str]], overwrite: bool = False) -> None:
+        """A .hbv scene file, written atomically; FileExistsError unless overwrite=True."""
+    def __reduce__(self) -> Any:
+        """Pickled as its .hbv scene file's bytes: ids, masks, removed holes and answers kept;
+        which Python objects were added is not."""
 
 def load_scene(path: Union[str, PathLike[str]]) -> Scene:
-    """Reads a glTF file (.gltf, .glb) as a scene (docs/RAYS.md "Scenes (glTF)"); .obj or .ply
-    as one instance. OSError / ValueError naming file, place and reason."""
+    """Reads a .hbv scene file (Scene.save, `hbv build SCENE.glb`; told by its content), a .hbv
+    mesh file as one instance, a glTF file (.gltf, .glb) as a scene (docs/RAYS.md "Scenes
+    (glTF)"), or .obj / .ply as one instance. OSError / ValueError naming file, place and
+    reason."""

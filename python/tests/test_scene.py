@@ -566,3 +566,148 @@ def test_hbv_trace_answers_as_load_scene_and_the_scene_built_by_hand(tmp_path):
     np.testing.assert_array_equal(traced["instance"], hand["instance"])
     np.testing.assert_array_equal(traced["prim"], hand["prim"])
     np.testing.assert_allclose(traced["t"], hand["t"], rtol=1e-6, atol=1e-6)
+
+
+def kept_scene():
+    """The mixed scene, with a float64 cube at UTM coordinates added, two instances removed, a
+    mask changed and an instance moved (a change the top level has not seen yet); rays at every
+    instance, near and far, with masks; points near both."""
+    scene, _, sphere = mixed_scene()
+    corner = np.array([500000.137, 5000000.291, 10.113])
+    v, f = cube(center=corner + 0.5, size=1.0)
+    assert scene.add((v, f), mask=0b1001) == 5
+    scene.remove(0)
+    scene.remove(3)
+    scene.set_mask(1, 0b110)
+    scene.set_transform(2, affine(rotation((0, 1, 0), 0.4), (0.1, 1.1, 0.2)))
+    o, d = scene_rays(1500, seed=31)
+    rng = np.random.default_rng(32)
+    far_o = corner + 0.5 + rng.uniform(-3, 3, (300, 3))
+    far_d = corner + 0.5 + rng.uniform(-0.4, 0.4, (300, 3)) - far_o
+    o, d = np.vstack([o, far_o]), np.vstack([d, far_d])
+    masks = rng.choice(np.array([0xFFFFFFFF, 1, 2, 6, 8, 9], np.uint32), len(o))
+    points = np.vstack([rng.uniform(-2, 2, (200, 3)), corner + rng.uniform(-1, 2, (100, 3))])
+    return scene, sphere, (o, d, masks, points)
+
+
+def every_answer(scene, o, d, masks, points):
+    """Every query of the scene on the rays and points, with their masks and without."""
+    answers = []
+    for m in (None, masks):
+        answers += [scene.intersect(o, d, mask=m), scene.occluded(o, d, mask=m),
+                    scene.intersect_all(o, d, mask=m), scene.count(o, d, mask=m),
+                    scene.closest_point(points, mask=None if m is None else m[:len(points)])]
+    return answers
+
+
+def assert_same_answers(got, want):
+    """Equal bit for bit: every array of every answer (NaN equal to NaN)."""
+    if isinstance(want, dict):
+        assert got.keys() == want.keys()
+        for k in want:
+            assert_same_answers(got[k], want[k])
+    elif isinstance(want, (list, tuple)):
+        assert len(got) == len(want)
+        for g, w in zip(got, want):
+            assert_same_answers(g, w)
+    else:
+        assert np.asarray(got).dtype == np.asarray(want).dtype
+        np.testing.assert_array_equal(got, want)
+
+
+def test_pickle_keeps_ids_masks_holes_and_answers():
+    import copy
+    import pickle
+
+    scene, sphere, queries = kept_scene()
+    want = every_answer(scene, *queries)
+    assert (want[0]["instance"] == 5).sum() > 20, "rays reach the far cube"
+    for back in (pickle.loads(pickle.dumps(scene)), copy.deepcopy(scene)):
+        assert type(back) is hbv.Scene
+        assert (back.instance_count, len(back), back.mesh_count) == (6, 4, 4)
+        assert back.bounds == scene.bounds
+        assert_same_answers(every_answer(back, *queries), want)
+        # Removed ids stay refused, new ones follow the last.
+        with pytest.raises(ValueError, match="instance: id 3 was removed"):
+            back.set_mask(3, 1)
+        # What is not kept: which Python objects were added. The sphere added again is a new
+        # mesh of the unpickled scene, and the same mesh of the original.
+        assert back.add(sphere) == 6 and back.mesh_count == 5
+        assert scene.mesh_count == 4
+    # The original is unchanged by its copies' changes.
+    assert_same_answers(every_answer(scene, *queries), want)
+
+
+def test_save_and_load_scene_round_trip(tmp_path):
+    scene, _, queries = kept_scene()
+    want = every_answer(scene, *queries)
+    path = tmp_path / "kept.hbv"
+    scene.save(path)
+    assert sorted(os.listdir(tmp_path)) == ["kept.hbv"]  # no temporary file left behind
+    loaded = hbv.load_scene(path)
+    assert (loaded.instance_count, len(loaded), loaded.mesh_count) == (6, 4, 4)
+    assert_same_answers(every_answer(loaded, *queries), want)
+    # Told by its content, whatever its name; saving the loaded scene gives the same bytes.
+    renamed = tmp_path / "kept.glb"
+    loaded.save(renamed)
+    assert renamed.read_bytes() == path.read_bytes()
+    assert_same_answers(every_answer(hbv.load_scene(str(renamed)), *queries), want)
+    # A scene file is not a BVH's.
+    with pytest.raises(ValueError, match="kept.hbv.*holds a scene"):
+        hbv.load_bvh(path)
+
+
+def test_scene_save_never_overwrites_unless_asked(tmp_path):
+    scene, _, _ = mixed_scene()
+    path = tmp_path / "scene.hbv"
+    path.write_bytes(b"precious")
+    with pytest.raises(FileExistsError, match="scene.hbv.*overwrite=True"):
+        scene.save(path)
+    assert path.read_bytes() == b"precious"
+    scene.save(path, overwrite=True)
+    assert len(hbv.load_scene(path)) == 5
+    assert sorted(os.listdir(tmp_path)) == ["scene.hbv"]
+    with pytest.raises(FileNotFoundError, match="cannot save the scene: .*no_such_dir"):
+        scene.save(tmp_path / "no_such_dir" / "s.hbv")
+    with pytest.raises(IsADirectoryError, match="it is a directory"):
+        scene.save(tmp_path, overwrite=True)
+
+
+def test_load_scene_reads_a_bvh_file_as_one_instance(tmp_path, sphere):
+    mesh, _, _ = sphere
+    bvh = hbv.BVH(mesh, builder="sweep-sah", leaf_size=2)
+    path = tmp_path / "tree.hbv"
+    bvh.save(path)
+    scene = hbv.load_scene(path)
+    assert (len(scene), scene.mesh_count, scene.instance_count) == (1, 1, 1)
+    o, d = random_rays(1000, seed=33)
+    a, b = scene.intersect(o, d), bvh.intersect(o, d)
+    assert a["hit"].sum() > 100
+    for k in ("hit", "t", "prim", "u", "v", "normal"):
+        np.testing.assert_array_equal(a[k], b[k], err_msg=k)
+    np.testing.assert_array_equal(a["instance"], np.where(a["hit"], 0, -1))
+
+
+def test_corrupt_scene_files_raise_value_error_naming_the_file(tmp_path):
+    scene, _, _ = mixed_scene()
+    path = tmp_path / "good.hbv"
+    scene.save(path)
+    data = path.read_bytes()
+    truncated = tmp_path / "truncated.hbv"
+    truncated.write_bytes(data[: len(data) // 2])
+    with pytest.raises(ValueError, match="truncated.hbv: .*the file is truncated"):
+        hbv.load_scene(truncated)
+    flipped = bytearray(data)
+    flipped[len(data) // 2] ^= 0x40
+    damaged = tmp_path / "damaged.bin"  # told by its magic number, whatever its name
+    damaged.write_bytes(bytes(flipped))
+    with pytest.raises(ValueError, match="damaged.bin: .*corrupted"):
+        hbv.load_scene(damaged)
+    empty = tmp_path / "empty.hbv"
+    empty.write_bytes(b"")
+    with pytest.raises(ValueError, match="empty.hbv: not an hbv BVH file"):
+        hbv.load_scene(empty)
+    with pytest.raises(FileNotFoundError, match="missing.hbv"):
+        hbv.load_scene(tmp_path / "missing.hbv")
+    with pytest.raises(ValueError, match="<pickled hbv.Scene>: not an hbv BVH file"):
+        hbv._hbv._scene_from_bytes(b"not a scene")

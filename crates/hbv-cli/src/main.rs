@@ -28,17 +28,19 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Build a tree over a mesh (or the built-in scene) and report its shape and cost E[X].
+    /// Build a tree over a mesh (or the built-in scene) and report its shape and cost E[X]; on a
+    /// scene (glTF, or a saved .hbv scene), its meshes, instances and costs.
     Info(commands::info::InfoArgs),
-    /// Trace a ray file against a mesh and write the hits (file formats: docs/RAYS.md).
+    /// Trace a ray file against a mesh or a scene and write the hits (file formats:
+    /// docs/RAYS.md).
     Trace(commands::trace::TraceArgs),
     /// Measure rays per second of every layout on camera, diffuse and shadow rays.
     Bench(commands::bench::BenchArgs),
     /// Every builder on one table: build time, tree shape, predicted cost E[X] and the tests
     /// actually counted on isotropic lines and real rays.
     BuildCompare(commands::build_compare::BuildCompareArgs),
-    /// Build a tree over a mesh and save both in a .hbv file, which info and trace load
-    /// in place of a mesh (format: docs/BVH_FILE.md).
+    /// Build a mesh's tree, or each mesh of a glTF scene, and save it in a .hbv file, which
+    /// info, trace and bench load without building again (format: docs/BVH_FILE.md).
     Build(commands::build::BuildCommandArgs),
     /// Experiments that each answer one question with a table (see BENCHMARKS.md):
     /// `seed-claims`, `dynamic`.

@@ -5,85 +5,15 @@
 use std::path::Path;
 
 mod common;
-use common::{hbv, point_in_box, random_direction, stderr, stdout, write_obj};
+use common::scenes::{instanced_scene, rays_at};
+use common::{hbv, small_bench, stderr, stdout, write_obj};
 
-use glam::{DAffine3, DQuat, DVec3, Vec3};
+use glam::{DVec3, Vec3};
 use hbv::atomic_file::Replace;
 use hbv::geometry::Ray;
-use hbv::mesh::procedural::{icosphere, torus};
+use hbv::mesh::procedural::torus;
 use hbv::scene::{InstanceTransform, Scene, SceneHit, SceneRay};
 use hbv_cli::{hit_file, ray_file};
-use rand::{RngExt, SeedableRng};
-use rand_pcg::Pcg64Mcg;
-
-/// A scene of two meshes, each shared by several instances: spheres placed plainly, mirrored
-/// (x → -x, a negative determinant) and scaled by 2.5, and tori rotated and scaled unevenly.
-fn instanced_scene() -> Scene {
-    let mut scene = Scene::new();
-    let sphere = scene.add_mesh(icosphere(Vec3::ZERO, 1.0, 2));
-    let ring = scene.add_mesh(torus(Vec3::ZERO, 1.5, 0.4, 24, 12));
-    let place = |scale: DVec3, angle: f64, at: DVec3| {
-        InstanceTransform::new(DAffine3::from_scale_rotation_translation(
-            scale,
-            DQuat::from_rotation_y(angle),
-            at,
-        ))
-        .unwrap()
-    };
-    let transforms = [
-        (sphere, place(DVec3::ONE, 0.0, DVec3::new(0.0, 0.0, 0.0))),
-        (ring, place(DVec3::ONE, 0.7, DVec3::new(4.0, 0.5, 0.0))),
-        // Mirrored: its normals flip.
-        (
-            sphere,
-            place(DVec3::new(-1.0, 1.0, 1.0), 0.3, DVec3::new(-4.0, 0.0, 1.0)),
-        ),
-        (
-            sphere,
-            place(DVec3::splat(2.5), 1.1, DVec3::new(0.0, 0.0, 6.0)),
-        ),
-        (
-            ring,
-            place(DVec3::new(1.0, 3.0, 0.5), -0.4, DVec3::new(0.0, 4.0, -5.0)),
-        ),
-        // Overlapping the first sphere: closest hits must pick between instances.
-        (
-            sphere,
-            place(DVec3::splat(0.8), 0.0, DVec3::new(0.5, 0.2, 0.0)),
-        ),
-    ];
-    for (mesh, transform) in transforms {
-        scene.add_instance(mesh, transform, u32::MAX).unwrap();
-    }
-    scene.build();
-    scene
-}
-
-/// Rays at the scene: from outside its box at the centroids of random world triangles, and
-/// from random points inside its box in random directions, some with a finite interval.
-fn rays_at(scene: &Scene, count: usize, seed: u64) -> Vec<Ray> {
-    let flat = scene.flattened().unwrap();
-    let mut rng = Pcg64Mcg::seed_from_u64(seed);
-    let b = scene.bounds();
-    let (lo, ext) = (b.min, b.extent());
-    (0..count)
-        .map(|i| {
-            let dir = random_direction(&mut rng);
-            let inside = point_in_box(&mut rng, lo, ext);
-            match i % 3 {
-                0 => {
-                    let face = rng.random_range(0..flat.mesh.triangle_count());
-                    let t = flat.mesh.triangle(face);
-                    let target = (t.p0 + t.p1 + t.p2) / 3.0;
-                    let origin = b.center() + dir * ext.length();
-                    Ray::new(origin, target - origin)
-                }
-                1 => Ray::new(inside, dir),
-                _ => Ray::new(inside, dir).with_interval(0.0, 0.2 * ext.length()),
-            }
-        })
-        .collect()
-}
 
 /// Runs `hbv` with `args`, asserting success; returns stdout.
 fn run(args: &[&str]) -> String {
@@ -493,7 +423,9 @@ fn bench_measures_scenes_with_their_facts() {
     assert_eq!(results.len(), 16);
     for r in results {
         assert!(r["mrays_per_second"].as_f64().unwrap() > 0.0, "{r}");
-        assert!(r["nodes_per_ray"].is_null(), "{r}");
+        // Counted through the scene's counted queries: work inside the meshes' trees.
+        assert!(r["triangles_per_ray"].as_f64().unwrap() > 0.0, "{r}");
+        assert!(r["nodes_per_ray"].as_f64().unwrap() > 0.0, "{r}");
     }
     // The diffuse rays' closest hits and any hits agree on which rays hit something, and the
     // two layouts on every fraction.
@@ -533,4 +465,44 @@ fn bench_measures_scenes_with_their_facts() {
         )),
         "{text}"
     );
+}
+
+/// What `hbv bench` counts per ray on a scene means what it means on a mesh: a scene of one
+/// instance of a mesh, placed by the identity, tests the mesh's triangles, its boxes (less those
+/// of rays the top level turns away), and visits its nodes plus the instance entered.
+#[test]
+fn bench_counts_a_scene_of_one_instance_as_its_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = torus(Vec3::ZERO, 1.5, 0.4, 48, 24);
+    let obj = dir.path().join("ring.obj");
+    write_obj(&mesh, &obj);
+    let mut scene = Scene::new();
+    let ring = scene.add_mesh(mesh);
+    let identity = InstanceTransform::from_translation(DVec3::ZERO).unwrap();
+    scene.add_instance(ring, identity, u32::MAX).unwrap();
+    scene.build();
+    let glb = dir.path().join("ring.glb");
+    scene.write_gltf(&glb, Replace::Always).unwrap();
+    let wide8 = ["--layout", "wide8"];
+    let (of_mesh, of_scene) = (small_bench(&obj, &wide8), small_bench(&glb, &wide8));
+    let (of_mesh, of_scene) = (
+        of_mesh["results"].as_array().unwrap(),
+        of_scene["results"].as_array().unwrap(),
+    );
+    assert_eq!(of_mesh.len(), of_scene.len());
+    let per_ray = |r: &serde_json::Value, key: &str| r[key].as_f64().unwrap();
+    for (m, s) in of_mesh.iter().zip(of_scene) {
+        // The same triangles tested: the instance's tree is the mesh's, the ray carried
+        // exactly by the identity.
+        assert_eq!(s["triangles_per_ray"], m["triangles_per_ray"], "{m}\n{s}");
+        assert!(per_ray(s, "triangles_per_ray") > 0.0);
+        // Boxes inside the mesh's tree only: a ray the top level turns away tests none.
+        assert!(
+            per_ray(s, "boxes_per_ray") <= per_ray(m, "boxes_per_ray"),
+            "{m}\n{s}"
+        );
+        // The mesh's nodes, and at most the one entry into the instance per ray.
+        let extra = per_ray(s, "nodes_per_ray") - per_ray(m, "nodes_per_ray");
+        assert!(extra <= 1.0 + 1e-9, "{m}\n{s}");
+    }
 }

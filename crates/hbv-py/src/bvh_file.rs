@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use hbv::atomic_file::Replace;
-use hbv::bvh::file::{BvhFile, BvhFileProblem};
+use hbv::bvh::file::{BvhFile, BvhFileError, BvhFileProblem};
 use pyo3::exceptions::{
     PyFileExistsError, PyFileNotFoundError, PyIsADirectoryError, PyNotADirectoryError, PyOSError,
     PyPermissionError, PyValueError,
@@ -50,21 +50,26 @@ fn options_from_settings(settings: &str, layout: Option<&str>) -> PyResult<Build
 /// ([`BvhFile::save`], as `hbv build` does), replacing a file only with `overwrite`.
 pub fn save(py: Python<'_>, bvh: &PyBvh, path: PathBuf, overwrite: bool) -> PyResult<()> {
     let file = bvh.to_file();
-    let replace = if overwrite {
+    // Without the GIL: writing may block (a pipe waiting for its reader, a slow disk).
+    py.detach(|| file.save(&path, replace_policy(overwrite)))
+        .map(|_bytes| ())
+        .map_err(|e| save_error(&path, e, "tree"))
+}
+
+/// The library's replace policy of `overwrite=`.
+pub fn replace_policy(overwrite: bool) -> Replace {
+    if overwrite {
         Replace::Always
     } else {
         Replace::Never
-    };
-    // Without the GIL: writing may block (a pipe waiting for its reader, a slow disk).
-    py.detach(|| file.save(&path, replace))
-        .map(|_bytes| ())
-        .map_err(|e| save_error(&path, e))
+    }
 }
 
-/// The Python exception of a failed save: the `OSError` subclass of its kind, with the writer's
-/// message (which names the path and the reason); a file in the way says how to replace it.
-fn save_error(path: &Path, e: io::Error) -> PyErr {
-    let message = format!("cannot save the tree: {e}");
+/// The Python exception of a failed save of a `what` (a tree, a scene): the `OSError` subclass
+/// of its kind, with the writer's message (which names the path and the reason); a file in the
+/// way says how to replace it.
+pub fn save_error(path: &Path, e: io::Error, what: &str) -> PyErr {
+    let message = format!("cannot save the {what}: {e}");
     match e.kind() {
         io::ErrorKind::AlreadyExists => PyFileExistsError::new_err(format!(
             "{}: the file exists; pass overwrite=True to replace it",
@@ -102,16 +107,10 @@ pub fn _bvh_from_bytes(py: Python<'_>, data: &[u8], layout: Option<&str>) -> PyR
 
 fn from_loaded(
     py: Python<'_>,
-    loaded: Result<BvhFile, hbv::bvh::file::BvhFileError>,
+    loaded: Result<BvhFile, BvhFileError>,
     layout: Option<&str>,
 ) -> PyResult<PyBvh> {
-    let file = loaded.map_err(|e| match &e.problem {
-        BvhFileProblem::Io(cause) if cause.kind() == io::ErrorKind::NotFound => {
-            pyo3::exceptions::PyFileNotFoundError::new_err(e.to_string())
-        }
-        BvhFileProblem::Io(_) => PyOSError::new_err(e.to_string()),
-        _ => PyValueError::new_err(e.to_string()),
-    })?;
+    let file = loaded.map_err(load_error)?;
     let options = options_from_settings(&file.settings, layout)?;
     let triangles = Arc::new(file.mesh);
     let mesh = Py::new(py, PyMesh::new(triangles.clone()))?;
@@ -123,4 +122,17 @@ fn from_loaded(
         0.0,
         file.settings,
     ))
+}
+
+/// The Python exception of a `.hbv` file that cannot be loaded: FileNotFoundError or OSError
+/// when it cannot be read, ValueError when its contents are wrong; the message names the file
+/// and what is wrong.
+pub fn load_error(e: BvhFileError) -> PyErr {
+    match &e.problem {
+        BvhFileProblem::Io(cause) if cause.kind() == io::ErrorKind::NotFound => {
+            PyFileNotFoundError::new_err(e.to_string())
+        }
+        BvhFileProblem::Io(_) => PyOSError::new_err(e.to_string()),
+        _ => PyValueError::new_err(e.to_string()),
+    }
 }

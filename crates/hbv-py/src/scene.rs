@@ -1,5 +1,6 @@
-//! `hbv.Scene` and `hbv.load_scene`: many meshes placed by instances in one two-level BVH
-//! (hbv::scene), NumPy in and out, on all cores with the GIL released.
+//! `hbv.Scene`: many meshes placed by instances in one two-level BVH (hbv::scene), NumPy in and
+//! out, on all cores with the GIL released. Saving, pickling and `hbv.load_scene` are in
+//! `scene_file.rs`.
 
 use std::collections::HashMap;
 use std::ffi::CString;
@@ -14,9 +15,9 @@ use pyo3::types::{PyDict, PyTuple};
 
 use crate::arrays::float_array;
 use crate::masks::{one_mask, row_masks};
-use crate::mesh::mesh_error;
 use crate::ray_queries::{any_hits, closest_hits, hit_counts, RayArgs};
 use crate::scene_arguments::{instance_id, read_transform, MeshKey, NewMesh};
+use crate::scene_file;
 use crate::scene_queries::{
     every_scene_hit, scene_closest_points, scene_inside, MaskedPoints, SceneTracer,
 };
@@ -34,6 +35,12 @@ use crate::thread_pool::ThreadCount;
 /// instance i only if `mask & mask_i != 0`; the default sees every instance whose mask is not 0.
 ///
 /// set_transform, set_mask and remove change the scene; queries see the change at once.
+///
+/// save(path) writes it to a .hbv scene file, which hbv.load_scene reads back; it pickles as
+/// the same bytes. Either way the instances keep their ids (removed ones stay holes), their
+/// transforms and masks, and every query answers bit for bit as before; what is not kept is
+/// which Python objects were added (the same object added to the scene read back is a new
+/// mesh of it).
 #[pyclass(name = "Scene", module = "hbv", frozen)]
 pub struct PyScene {
     state: Mutex<SceneState>,
@@ -59,7 +66,7 @@ struct SceneState {
 }
 
 impl PyScene {
-    fn from_scene(scene: Scene) -> Self {
+    pub(crate) fn from_scene(scene: Scene) -> Self {
         Self {
             state: Mutex::new(SceneState {
                 scene: Arc::new(scene),
@@ -82,7 +89,7 @@ impl PyScene {
 
     /// The scene as it is now, its top level brought up to date first if it changed, for a
     /// query to read without the lock.
-    fn current(&self, py: Python<'_>) -> Arc<Scene> {
+    pub(crate) fn current(&self, py: Python<'_>) -> Arc<Scene> {
         py.detach(|| {
             let mut state = self.lock();
             if state.changed {
@@ -236,6 +243,25 @@ impl PyScene {
     fn remove(&self, py: Python<'_>, instance: &Bound<'_, PyAny>) -> PyResult<()> {
         let instance = self.instance(instance)?;
         self.change(py, |scene| scene.remove_instance(instance))
+    }
+
+    /// Saves the scene to `path` as a .hbv scene file (docs/BVH_FILE.md), which
+    /// hbv.load_scene and `hbv trace` read back: every mesh with its tree, every instance by id
+    /// (removed ones as holes) with its transform and mask. Written atomically (a temporary
+    /// file, then renamed into place); FileExistsError if `path` exists, unless
+    /// `overwrite=True` (also if it appears while the scene is written).
+    #[pyo3(signature = (path, overwrite=false))]
+    fn save(&self, py: Python<'_>, path: PathBuf, overwrite: bool) -> PyResult<()> {
+        let scene = self.current(py);
+        scene_file::save(py, &scene, &path, overwrite)
+    }
+
+    /// Pickled as the bytes of its .hbv scene file (see `save`); unpickling lays out the saved
+    /// trees, building no mesh again.
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
+        let py = slf.py();
+        let scene = slf.get().current(py);
+        scene_file::reduce(py, &scene)
     }
 
     /// The number of instance ids handed out, removed ones included: ids are 0 to this - 1.
@@ -404,17 +430,4 @@ impl PyScene {
         };
         scene_closest_points(py, &scene, query, threads)
     }
-}
-
-/// load_scene(path) -> Scene: reads a glTF file (.gltf, .glb) as a scene, its nodes with
-/// meshes as instances (ids in depth-first order of the default scene's nodes, a mesh shared
-/// by several nodes built once, every mask all bits), as docs/RAYS.md "Scenes (glTF)" says; an
-/// .obj or .ply file as a scene of one instance (id 0).
-///
-/// Raises OSError when the file cannot be read, ValueError when it is not a valid scene; the
-/// message names the file, the place in it and the reason.
-#[pyfunction]
-pub fn load_scene(py: Python<'_>, path: PathBuf) -> PyResult<PyScene> {
-    let scene = py.detach(|| Scene::load(&path)).map_err(mesh_error)?;
-    Ok(PyScene::from_scene(scene))
 }

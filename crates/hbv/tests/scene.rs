@@ -712,6 +712,17 @@ proptest! {
             let tally = check_scene(&spec, &scene, &flat);
             let limit = if spec.far == DVec3::ZERO { 1 } else { tally.rays / 8 };
             prop_assert!(tally.excused <= limit, "step {step} {op:?}: {tally:?}");
+            // Nearest points too, with moved instances pending and stale leaves in the top
+            // level: as near as the flattened triangles of every instance whose mask is not 0.
+            let tolerance = 2f64.powi(-22) * flat.mesh.bounds().max.abs().max(flat.mesh.bounds().min.abs()).max_element() as f64 + 1e-9;
+            for p in spec.rays.iter().take(6).map(|r| r.0.as_dvec3() + start.far) {
+                let ours = scene.closest_point(p).map(|c| c.distance);
+                let theirs = nearest_seen_distance(&flat, p);
+                match (ours, theirs) {
+                    (Some(a), Some(b)) => prop_assert!((a - b).abs() <= tolerance, "step {step} {op:?}: {a} vs {b}"),
+                    (a, b) => prop_assert!(a.is_none() && b.is_none(), "step {step} {op:?}: {a:?} vs {b:?}"),
+                }
+            }
         }
     }
 }
@@ -909,4 +920,25 @@ fn a_mesh_whose_vertices_move_answers_as_one_built_at_its_new_place() {
         scene.set_mesh_positions(MeshId(9), Vec::new()),
         Err(SceneError::UnknownMesh { .. })
     ));
+}
+
+/// The distance from `p` to the nearest flattened triangle of an instance whose mask is not 0.
+fn nearest_seen_distance(flat: &FlattenedScene, p: DVec3) -> Option<f64> {
+    flat.offsets
+        .windows(2)
+        .enumerate()
+        .filter(|(instance, _)| flat.masks[*instance] != 0)
+        .flat_map(|(_, faces)| faces[0]..faces[1])
+        .map(|face| flat.mesh.triangle(face as usize))
+        .filter(|t| !t.is_degenerate())
+        .map(|t| {
+            let q = hbv::proximity::closest_point_on_triangle(
+                p,
+                t.p0.as_dvec3(),
+                t.p1.as_dvec3(),
+                t.p2.as_dvec3(),
+            );
+            (q.point - p).length()
+        })
+        .min_by(f64::total_cmp)
 }

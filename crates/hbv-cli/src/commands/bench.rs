@@ -22,7 +22,7 @@ use serde::Serialize;
 
 use hbv::grid::{GridConfig, UniformGrid};
 
-use super::build_args::{is_scene_file, load_mesh, thread_pool, AccelName, BuildArgs};
+use super::build_args::{load_mesh, thread_pool, AccelName, BuildArgs, SceneSource};
 use super::flag_values::ray_count;
 use super::median::median;
 use super::name_values::layout_kind;
@@ -32,10 +32,13 @@ use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 
 #[derive(Args)]
 pub struct BenchArgs {
-    /// Mesh file (.obj, .ply) or scene file (.gltf, .glb: its instances traced through the
-    /// top level, the rays made on its flattened triangles); the built-in scene when omitted.
+    /// Mesh file (.obj, .ply), scene file (.gltf, .glb: its instances traced through the top
+    /// level, the rays made on its flattened triangles) or a .hbv file from `hbv build` (a
+    /// saved tree's mesh, built again; a saved scene, measured as saved); the built-in scene
+    /// when omitted.
     pub mesh: Option<PathBuf>,
-    /// Layout to measure; repeat for several. Default: every layout.
+    /// Layout to measure; repeat for several. Default: every layout (a saved scene: the one its
+    /// file records).
     #[arg(long = "layout", value_name = "LAYOUT", value_parser = layout_kind())]
     pub layouts: Vec<LayoutKind>,
     #[command(flatten)]
@@ -57,7 +60,9 @@ pub struct BenchArgs {
     /// Seed of the diffuse and shadow rays (the camera rays take none).
     #[arg(long = "ray-seed", default_value_t = 1)]
     pub ray_seed: u64,
-    /// Rays of each set, spread evenly over it, on which tests per ray are counted.
+    /// Rays of each set, spread evenly over it, on which the work per ray is counted: nodes
+    /// visited, boxes and triangles tested. On a scene, the work inside its meshes' trees, each
+    /// instance entered counted as one node visited; the top level's boxes are not counted.
     #[arg(long = "counted-rays", default_value_t = 10_000)]
     pub counted_rays: usize,
     /// Print one JSON object instead of tables.
@@ -122,11 +127,11 @@ pub(super) struct Measurement {
     /// Fraction of the rays that hit (closest) or are occluded.
     pub(super) hit_fraction: f64,
     pub(super) memory_bytes: usize,
-    /// Mean work per ray on the counted subsample (the same on any thread count); `None`
-    /// (JSON null) where the structure does not count its work (scenes).
-    pub(super) nodes_per_ray: Option<f64>,
-    pub(super) boxes_per_ray: Option<f64>,
-    pub(super) triangles_per_ray: Option<f64>,
+    /// Mean work per ray on the counted subsample (the same on any thread count; what is
+    /// counted: `--counted-rays`).
+    pub(super) nodes_per_ray: f64,
+    pub(super) boxes_per_ray: f64,
+    pub(super) triangles_per_ray: f64,
     pub(super) counted_rays: u64,
 }
 
@@ -165,8 +170,10 @@ pub fn run(args: &BenchArgs) -> anyhow::Result<()> {
     if let Some(dir) = &args.write_rays {
         check_ray_set_outputs(dir, args.force)?;
     }
-    if let Some(path) = args.mesh.as_deref().filter(|p| is_scene_file(p)) {
-        return scene_bench::run(path, args);
+    if let Some(path) = args.mesh.as_deref() {
+        if let Some(source) = SceneSource::of(path) {
+            return scene_bench::run(path, source, args);
+        }
     }
     let (mesh, name, load_seconds) = load_mesh(args.mesh.as_deref())?;
     if mesh.triangle_count() == mesh.degenerate_count() {
@@ -275,9 +282,8 @@ pub(super) trait Measured: Sync {
     /// rays hit (or are occluded).
     fn answer(&self, rays: &[Self::Ray], query: Query) -> (f64, usize);
 
-    /// The work of `query` counted on at most `count` of `rays`, where the structure counts it.
-    fn count_tests(&self, rays: &[Self::Ray], query: Query, count: usize)
-        -> Option<TraversalStats>;
+    /// The work of `query` counted on at most `count` of `rays` ([`count_sampled`]).
+    fn count_tests(&self, rays: &[Self::Ray], query: Query, count: usize) -> TraversalStats;
 }
 
 impl Measured for dyn Accelerator + '_ {
@@ -290,8 +296,15 @@ impl Measured for dyn Accelerator + '_ {
         }
     }
 
-    fn count_tests(&self, rays: &[Ray], query: Query, count: usize) -> Option<TraversalStats> {
-        Some(count_tests(self, rays, query, count))
+    fn count_tests(&self, rays: &[Ray], query: Query, count: usize) -> TraversalStats {
+        count_sampled(rays, count, |ray, stats| match query {
+            Query::Closest => {
+                self.intersect_counted(ray, stats);
+            }
+            Query::Occluded => {
+                self.occluded_counted(ray, stats);
+            }
+        })
     }
 }
 
@@ -320,10 +333,10 @@ pub(super) fn measure<M: Measured + ?Sized>(
                 runs,
                 hit_fraction: hits as f64 / rays.len().max(1) as f64,
                 memory_bytes,
-                nodes_per_ray: stats.map(|s| s.nodes_per_ray()),
-                boxes_per_ray: stats.map(|s| s.boxes_per_ray()),
-                triangles_per_ray: stats.map(|s| s.triangles_per_ray()),
-                counted_rays: stats.map_or(0, |s| s.rays),
+                nodes_per_ray: stats.nodes_per_ray(),
+                boxes_per_ray: stats.boxes_per_ray(),
+                triangles_per_ray: stats.triangles_per_ray(),
+                counted_rays: stats.rays,
             });
         }
     }
@@ -433,14 +446,13 @@ pub(super) fn timed_occlusion(batch: impl FnOnce() -> Vec<bool>) -> (f64, usize)
     (seconds, occluded.iter().filter(|&&o| o).count())
 }
 
-/// Work of `query` on at most `count` rays spread evenly over `rays` (every k-th), so that a
-/// camera subsample covers the whole image and not its top rows. (Counted ray by ray: what the
-/// wide-8 layout's packets of coherent rays share is not counted.)
-fn count_tests(
-    accel: &dyn Accelerator,
-    rays: &[Ray],
-    query: Query,
+/// The work `count_one` adds up on at most `count` rays spread evenly over `rays` (every k-th),
+/// so that a camera subsample covers the whole image and not its top rows. (Counted ray by ray:
+/// what the wide-8 layout's packets of coherent rays share is not counted.)
+pub(super) fn count_sampled<R>(
+    rays: &[R],
     count: usize,
+    mut count_one: impl FnMut(&R, &mut TraversalStats),
 ) -> TraversalStats {
     let mut stats = TraversalStats::default();
     if count == 0 {
@@ -448,14 +460,7 @@ fn count_tests(
     }
     let stride = rays.len().div_ceil(count).max(1);
     for ray in rays.iter().step_by(stride) {
-        match query {
-            Query::Closest => {
-                accel.intersect_counted(ray, &mut stats);
-            }
-            Query::Occluded => {
-                accel.occluded_counted(ray, &mut stats);
-            }
-        }
+        count_one(ray, &mut stats);
     }
     stats
 }
@@ -534,8 +539,15 @@ fn print_tables(report: &Report) {
             line += &format!(" {:>9.3}", r.mrays_per_second);
         }
         for per_ray in [m.nodes_per_ray, m.boxes_per_ray, m.triangles_per_ray] {
-            line += &per_ray.map_or(format!(" {:>9}", "-"), |x| format!(" {x:>9.1}"));
+            line += &format!(" {per_ray:>9.1}");
         }
         println!("{line}");
+    }
+    if report.scene.is_some() {
+        println!();
+        println!(
+            "per ray   counted inside the meshes' trees, each instance entered as one node; \
+             the top level's boxes are not counted"
+        );
     }
 }

@@ -6,13 +6,13 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::{Args, ValueEnum};
 use hbv::bvh::build::{Builder, BuilderKind, BuilderOptions, InsertionOrder};
-use hbv::bvh::file::{is_bvh_file, BvhFile};
+use hbv::bvh::file::{is_bvh_file, kind_of_bytes, BvhFileKind};
 use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 use hbv::bvh::optimize::ReinsertionOptimizer;
 use hbv::bvh::BuildTree;
 use hbv::mesh::procedural::default_scene;
 use hbv::mesh::MeshFormat;
-use hbv::scene::SceneStructure;
+use hbv::scene::{AnyBvhFile, SceneStructure};
 use hbv::TriangleMesh;
 
 use super::name_values::builder_kind;
@@ -191,28 +191,103 @@ pub struct BuildReport {
 }
 
 /// Loads `path`, or makes the built-in scene when there is none, with the load time in seconds.
-/// A `.hbv` file gives its mesh (its tree is dropped; see [`load_input`]); a glTF file its
-/// scene flattened into one world-space mesh.
+/// A `.hbv` file gives its mesh (its tree is dropped; see [`load_input`]); a glTF file or a
+/// `.hbv` scene file its scene flattened into one world-space mesh.
 pub fn load_mesh(path: Option<&Path>) -> anyhow::Result<(TriangleMesh, String, f64)> {
     let input = load_input(path)?;
     Ok((input.mesh, input.name, input.load_seconds))
 }
 
-/// Whether `path` is a scene file: glTF (`.gltf`, `.glb`), whose nodes are instances of its
-/// meshes (`docs/RAYS.md`, "Scenes (glTF)"), and not a `.hbv` file under another name. `trace`,
-/// `info` and `bench` take it as a [`hbv::Scene`]; the other commands as its flattened mesh.
-pub fn is_scene_file(path: &Path) -> bool {
-    MeshFormat::from_path(path) == Some(MeshFormat::Gltf) && !is_bvh_file(path)
+/// Where a scene comes from: `trace`, `info` and `bench` take either as a [`hbv::Scene`]; the
+/// other commands as its flattened mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SceneSource {
+    /// A glTF file (`.gltf`, `.glb`), whose nodes are instances of its meshes (`docs/RAYS.md`,
+    /// "Scenes (glTF)"): each mesh is built as it is loaded.
+    Gltf,
+    /// A `.hbv` scene file (`hbv build SCENE.glb`, `docs/BVH_FILE.md`): each mesh's tree is
+    /// laid out as saved, none built again.
+    Saved,
 }
 
-/// Loads the scene file at `path` and builds it as `structure` says, with the seconds that took
-/// (reading, each mesh's BVH and the top level together).
+impl SceneSource {
+    /// The scene `path` is, told by its content for a `.hbv` file (whatever its name) and by
+    /// its name for glTF; `None` for a mesh, a `.hbv` mesh file, or a `.hbv` file whose header
+    /// cannot be read (loading it as a mesh then says what is wrong).
+    pub fn of(path: &Path) -> Option<SceneSource> {
+        if is_bvh_file(path) {
+            return (hbv_kind(path) == Some(BvhFileKind::Scene)).then_some(SceneSource::Saved);
+        }
+        (MeshFormat::from_path(path) == Some(MeshFormat::Gltf)).then_some(SceneSource::Gltf)
+    }
+
+    /// How each mesh's tree and the top level are made, for reports: `build` and `layout`
+    /// for a glTF scene, the file's own for a saved one.
+    pub fn describe(self, build: &BuildArgs, layout: LayoutKind) -> String {
+        match self {
+            SceneSource::Gltf => {
+                format!(
+                    "each mesh: {}, {layout}; top level: binned SAH",
+                    build.describe()
+                )
+            }
+            SceneSource::Saved => "each mesh: its saved tree, laid out as saved; top level: \
+                                   binned SAH, built as opened"
+                .into(),
+        }
+    }
+
+    /// Refuses building and layout options given with a saved scene, which would otherwise be
+    /// ignored: its trees are saved and their layout recorded in the file. `layout_flags` names
+    /// the command's layout flags that were given.
+    pub fn check_options(
+        self,
+        path: &Path,
+        build: &BuildArgs,
+        layout_flags: &[&str],
+    ) -> anyhow::Result<()> {
+        if self == SceneSource::Saved {
+            refuse_build_options(&path.display().to_string(), build, "scene")?;
+            if let Some(flag) = layout_flags.first() {
+                anyhow::bail!(
+                    "{}: a saved scene is laid out as its file says: {flag} applies only to \
+                     meshes and glTF scenes (rebuild it with `hbv build`)",
+                    path.display()
+                );
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The kind of the `.hbv` file at `path`, from its 64-byte header alone; `None` when the header
+/// cannot be read or is not valid.
+fn hbv_kind(path: &Path) -> Option<BvhFileKind> {
+    use std::io::Read;
+    let mut header = Vec::with_capacity(64);
+    std::fs::File::open(path)
+        .ok()?
+        .take(64)
+        .read_to_end(&mut header)
+        .ok()?;
+    kind_of_bytes(&header).ok()
+}
+
+/// Loads the scene at `path` (from `source`) with the seconds that took: a glTF scene read and
+/// built as `structure` says (each mesh's BVH and the top level), a saved scene opened as its
+/// file says (`structure` unused: see [`SceneSource::check_options`]).
 pub fn load_scene_file(
     path: &Path,
+    source: SceneSource,
     structure: SceneStructure,
 ) -> anyhow::Result<(hbv::Scene, f64)> {
     let start = Instant::now();
-    let scene = hbv::Scene::load_with_structure(path, structure).context("cannot load scene")?;
+    let scene = match source {
+        SceneSource::Gltf => {
+            hbv::Scene::load_with_structure(path, structure).context("cannot load scene")?
+        }
+        SceneSource::Saved => hbv::Scene::open(path).context("cannot load scene")?,
+    };
     Ok((scene, start.elapsed().as_secs_f64()))
 }
 
@@ -240,12 +315,23 @@ pub fn load_input(path: Option<&Path>) -> anyhow::Result<Input> {
         Some(p)
             if is_bvh_file(p) || p.extension().is_some_and(|e| e.eq_ignore_ascii_case("hbv")) =>
         {
-            let file = BvhFile::load(p).context("cannot load tree")?;
-            let saved = SavedTree {
-                tree: file.tree,
-                settings: file.settings,
-            };
-            (file.mesh, Some(saved), p.display().to_string())
+            match AnyBvhFile::load(p).context("cannot load tree")? {
+                AnyBvhFile::Mesh(file) => {
+                    let saved = SavedTree {
+                        tree: file.tree,
+                        settings: file.settings,
+                    };
+                    (file.mesh, Some(saved), p.display().to_string())
+                }
+                // A saved scene, to a command that takes a mesh: its world-space triangles,
+                // as a glTF scene is flattened.
+                AnyBvhFile::Scene(scene) => {
+                    let flat = scene
+                        .flattened()
+                        .with_context(|| format!("{}: cannot flatten the scene", p.display()))?;
+                    (flat.mesh, None, p.display().to_string())
+                }
+            }
         }
         Some(p) => (
             TriangleMesh::load(p).with_context(|| "cannot load mesh".to_string())?,
@@ -269,14 +355,8 @@ pub fn load_input(path: Option<&Path>) -> anyhow::Result<Input> {
 impl Input {
     /// Refuses building options given with a saved tree, which would otherwise be ignored.
     pub fn check_build_options(&self, build: &BuildArgs) -> anyhow::Result<()> {
-        if self.saved.is_some()
-            && (build.builder.is_some() || build.optimize || build.leaf_size.is_some())
-        {
-            anyhow::bail!(
-                "{} holds a saved tree: --builder, --optimize and --leaf-size apply only to meshes \
-                 (rebuild it with `hbv build`)",
-                self.name
-            );
+        if self.saved.is_some() {
+            refuse_build_options(&self.name, build, "tree")?;
         }
         Ok(())
     }
@@ -300,6 +380,18 @@ impl Input {
             }
         }
     }
+}
+
+/// Refuses `--builder`, `--optimize` and `--leaf-size` for the input `name`, which holds a saved
+/// `what` (a tree, a scene) built already.
+fn refuse_build_options(name: &str, build: &BuildArgs, what: &str) -> anyhow::Result<()> {
+    if build.builder.is_some() || build.optimize || build.leaf_size.is_some() {
+        anyhow::bail!(
+            "{name} holds a saved {what}: --builder, --optimize and --leaf-size apply only to \
+             meshes and glTF scenes, built as they are loaded (rebuild it with `hbv build`)"
+        );
+    }
+    Ok(())
 }
 
 /// The most threads `--threads` may ask for: starting tens of thousands took minutes, for no

@@ -6,14 +6,14 @@ use clap::Args;
 use hbv::bvh::{expected_tests, sah_cost, SahWeights};
 use serde_json::json;
 
-use super::build_args::{is_scene_file, load_input, BuildArgs};
+use super::build_args::{load_input, BuildArgs, SceneSource};
 use super::scene_info;
 
 #[derive(Args)]
 pub struct InfoArgs {
     /// Mesh file (.obj, .ply), scene file (.gltf, .glb: meshes, instances, the top level's and
-    /// each mesh's E[X]) or saved tree (.hbv, from `hbv build`); the built-in scene when
-    /// omitted.
+    /// each mesh's E[X]) or a .hbv file from `hbv build` (a saved tree, or a saved scene); the
+    /// built-in scene when omitted.
     pub mesh: Option<PathBuf>,
     #[command(flatten)]
     pub build: BuildArgs,
@@ -23,8 +23,10 @@ pub struct InfoArgs {
 }
 
 pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
-    if let Some(path) = args.mesh.as_deref().filter(|p| is_scene_file(p)) {
-        return scene_info::run(path, args);
+    if let Some(path) = args.mesh.as_deref() {
+        if let Some(source) = SceneSource::of(path) {
+            return scene_info::run(path, source, args);
+        }
     }
     let scene = load_input(args.mesh.as_deref())?;
     scene.check_build_options(&args.build)?;

@@ -1,28 +1,29 @@
-//! `hbv info SCENE.glb`: a scene's meshes and instances, its triangles as stored and as seen,
+//! `hbv info SCENE.glb` (or a saved scene, `SCENE.hbv`): a scene's meshes and instances, its triangles as stored and as seen,
 //! the E[X] of its top level and of each mesh's tree, and the memory it holds.
 
 use std::path::Path;
 
-use hbv::bvh::build::BuilderKind;
 use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 use hbv::scene::SceneSummary;
 use serde_json::json;
 
-use super::build_args::load_scene_file;
+use super::build_args::{load_scene_file, SceneSource};
 use super::info::InfoArgs;
 
 /// Above this many meshes, their E[X] is summarized (least, median, most, mean over the
 /// triangles seen) instead of listed one line each.
 const MESHES_LISTED: usize = 16;
 
-/// Loads the scene at `path`, its meshes built as `args` says (insertion unless told, as for a
-/// mesh) and laid out in wide-8 nodes, and prints what [`hbv::Scene::summary`] reports.
-pub fn run(path: &Path, args: &InfoArgs) -> anyhow::Result<()> {
+/// Loads the scene at `path`: a glTF scene with its meshes built as `args` says (insertion
+/// unless told, as for a mesh) and laid out in wide-8 nodes, a saved scene as its file says;
+/// and prints what [`hbv::Scene::summary`] reports.
+pub fn run(path: &Path, source: SceneSource, args: &InfoArgs) -> anyhow::Result<()> {
+    source.check_options(path, &args.build, &[])?;
     let builder = args.build.builder_name();
     let structure =
         args.build
             .scene_structure(builder, LayoutKind::Wide8, LayoutOptions::default());
-    let (scene, load_seconds) = load_scene_file(path, structure)?;
+    let (scene, load_seconds) = load_scene_file(path, source, structure)?;
     let summary = scene.summary();
     let mesh_costs = scene.mesh_expected_tests();
     let bounds = scene.bounds();
@@ -31,11 +32,11 @@ pub fn run(path: &Path, args: &InfoArgs) -> anyhow::Result<()> {
     } else {
         (bounds.min.to_array(), bounds.max.to_array())
     };
-    let described = format!(
-        "each mesh: {}, {}; top level: binned SAH",
-        args.build.describe(),
-        LayoutKind::Wide8
-    );
+    let described = source.describe(&args.build, LayoutKind::Wide8);
+    let tree_name = match source {
+        SceneSource::Gltf => builder.to_string(),
+        SceneSource::Saved => "saved".to_string(),
+    };
 
     if args.json {
         let meshes: Vec<_> = summary
@@ -93,7 +94,7 @@ pub fn run(path: &Path, args: &InfoArgs) -> anyhow::Result<()> {
         "E[X] top    {:.3} boxes per line through the root (Σ SA(n) / SA(root) over its nodes)",
         summary.top_level_expected_tests
     );
-    print_mesh_costs(&summary, &mesh_costs, args.build.builder_name());
+    print_mesh_costs(&summary, &mesh_costs, &tree_name);
     println!(
         "memory      {:.2} MiB: meshes {:.2}, their BVHs {:.2}, instances {:.3} (top level not counted)",
         mib(summary.memory_bytes()),
@@ -105,7 +106,7 @@ pub fn run(path: &Path, args: &InfoArgs) -> anyhow::Result<()> {
 }
 
 /// One line per mesh, or a summary of their E[X] when there are more than [`MESHES_LISTED`].
-fn print_mesh_costs(summary: &SceneSummary, costs: &[f64], builder: BuilderKind) {
+fn print_mesh_costs(summary: &SceneSummary, costs: &[f64], builder: &str) {
     let formula = "Σ a_n SA(n) / SA(root)";
     if summary.meshes.len() <= MESHES_LISTED {
         for (id, (m, e)) in summary.meshes.iter().zip(costs).enumerate() {

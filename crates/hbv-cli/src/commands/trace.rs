@@ -17,7 +17,7 @@ use rayon::prelude::*;
 use rayon::ThreadPool;
 
 use super::build_args::{
-    is_scene_file, load_input, load_scene_file, thread_pool, AccelName, BuildArgs,
+    load_input, load_scene_file, thread_pool, AccelName, BuildArgs, SceneSource,
 };
 use super::median::median;
 use super::name_values::layout_kind;
@@ -27,7 +27,8 @@ use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 #[derive(Args)]
 pub struct TraceArgs {
     /// Mesh file (.obj, .ply), scene file (.gltf, .glb: its nodes are instances of its meshes)
-    /// or saved tree (.hbv, from `hbv build`).
+    /// or a .hbv file from `hbv build` (a saved tree, or a saved scene, which answers as the
+    /// glTF scene it was built from).
     pub mesh: PathBuf,
     /// Ray file (.npz with origins, directions, optional tmin, tmax).
     #[arg(long)]
@@ -55,9 +56,10 @@ pub struct TraceArgs {
     pub threads: usize,
     #[command(flatten)]
     pub build: BuildArgs,
-    /// How the tree is laid out for traversal.
-    #[arg(long, value_parser = layout_kind(), default_value_t = LayoutKind::Wide8)]
-    pub layout: LayoutKind,
+    /// How the tree is laid out for traversal [default: wide8]; a saved scene is laid out as
+    /// its file says.
+    #[arg(long, value_parser = layout_kind())]
+    pub layout: Option<LayoutKind>,
     /// Acceleration structure: a BVH (--builder, --layout) or a uniform grid.
     #[arg(long, value_enum, default_value_t = AccelName::Bvh)]
     pub accel: AccelName,
@@ -116,10 +118,9 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
     // A missing folder is refused before the tracing, with the message the write would give.
     hbv::atomic_file::check_writable(&args.out).context("cannot write hits")?;
     let pool = thread_pool(args.threads)?;
-    let (target, traced) = if is_scene_file(&args.mesh) {
-        load_scene_target(args, &pool)?
-    } else {
-        build_mesh_target(args, &pool)?
+    let (target, traced) = match SceneSource::of(&args.mesh) {
+        Some(source) => load_scene_target(args, source, &pool)?,
+        None => build_mesh_target(args, &pool)?,
     };
     let rays = ray_file::read_rays(&args.rays).context("cannot read rays")?;
     // Scenes take rays with masks; ray files have none, so every ray sees every instance.
@@ -248,7 +249,8 @@ fn build_mesh_target(args: &TraceArgs, pool: &ThreadPool) -> anyhow::Result<(Tar
                 let options = LayoutOptions {
                     ray_packets: !args.no_packets,
                 };
-                let accel = Box::new(args.layout.lay_out(&built.tree, &mesh, &options));
+                let layout = args.layout.unwrap_or(DEFAULT_LAYOUT);
+                let accel = Box::new(layout.lay_out(&built.tree, &mesh, &options));
                 (mesh, accel, build_seconds, builder_options)
             }
             AccelName::Grid => {
@@ -283,32 +285,45 @@ fn build_mesh_target(args: &TraceArgs, pool: &ThreadPool) -> anyhow::Result<(Tar
     Ok((Target::Mesh { mesh, accel }, traced))
 }
 
-/// Loads the scene file `--mesh`, each mesh built by `--builder` and laid out by `--layout`.
-fn load_scene_target(args: &TraceArgs, pool: &ThreadPool) -> anyhow::Result<(Target, Traced)> {
+/// The layout of `--layout` when none is named.
+const DEFAULT_LAYOUT: LayoutKind = LayoutKind::Wide8;
+
+/// Loads the scene file `--mesh`: a glTF scene with each mesh built by `--builder` and laid out
+/// by `--layout`, a saved scene as its file says.
+fn load_scene_target(
+    args: &TraceArgs,
+    source: SceneSource,
+    pool: &ThreadPool,
+) -> anyhow::Result<(Target, Traced)> {
     if args.accel == AccelName::Grid {
         anyhow::bail!(
-            "{}: --accel grid takes a mesh; a glTF scene is traced by its two-level BVH \
+            "{}: --accel grid takes a mesh; a scene is traced by its two-level BVH \
              (--accel bvh)",
             args.mesh.display()
         );
     }
+    let layout_flags: Vec<&str> = [
+        (args.layout.is_some(), "--layout"),
+        (args.no_packets, "--no-packets"),
+    ]
+    .into_iter()
+    .filter_map(|(given, flag)| given.then_some(flag))
+    .collect();
+    source.check_options(&args.mesh, &args.build, &layout_flags)?;
     let build = args.build.or_builder(BuilderKind::BinnedSah);
     let options = LayoutOptions {
         ray_packets: !args.no_packets,
     };
-    let structure = build.scene_structure(BuilderKind::BinnedSah, args.layout, options);
-    let (scene, load_seconds) = pool.install(|| load_scene_file(&args.mesh, structure))?;
+    let layout = args.layout.unwrap_or(DEFAULT_LAYOUT);
+    let structure = build.scene_structure(BuilderKind::BinnedSah, layout, options);
+    let (scene, load_seconds) = pool.install(|| load_scene_file(&args.mesh, source, structure))?;
     let summary = scene.summary();
     let traced = Traced {
         triangles: summary.triangles_stored,
         triangles_seen: summary.triangles_seen,
         meshes: summary.meshes.len(),
         instances: summary.live_instances,
-        built: format!(
-            "each mesh: {}, {}; top level: binned SAH",
-            build.describe(),
-            args.layout
-        ),
+        built: source.describe(&build, layout),
         load_seconds,
         build_seconds: None,
     };

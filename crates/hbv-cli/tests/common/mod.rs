@@ -3,6 +3,8 @@
 
 #![allow(dead_code)]
 
+pub mod scenes;
+
 use std::path::Path;
 use std::process::{Command, Output};
 
@@ -47,4 +49,24 @@ pub fn point_in_box(rng: &mut Pcg64Mcg, lo: Vec3, extent: Vec3) -> Vec3 {
 /// A direction drawn from the cube `[-1/2, 1/2]³`, normalized (`+x` if it is too short).
 pub fn random_direction(rng: &mut Pcg64Mcg) -> Vec3 {
     (point_in_box(rng, Vec3::ZERO, Vec3::ONE) - 0.5).normalize_or(Vec3::X)
+}
+
+/// `hbv bench INPUT --json` on 1,500 rays per set, one timed run on one thread, with `flags`;
+/// asserts success and returns the report.
+pub fn small_bench(input: &Path, flags: &[&str]) -> serde_json::Value {
+    let mut args = vec![
+        "bench",
+        input.to_str().unwrap(),
+        "--rays",
+        "1500",
+        "--repeat",
+        "1",
+        "--threads",
+        "1",
+        "--json",
+    ];
+    args.extend(flags);
+    let out = hbv(&args);
+    assert!(out.status.success(), "hbv {args:?}: {}", stderr(&out));
+    serde_json::from_str(&stdout(&out)).unwrap()
 }

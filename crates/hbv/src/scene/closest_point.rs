@@ -11,8 +11,9 @@
 //! [`closest_point_brute_force`](crate::proximity::closest_point_brute_force) does), a cost
 //! linear in its triangles.
 //!
-//! Instances are visited by a linear scan of the live ones, nearest world box first, stopping
-//! at the first box farther than the best distance so far; the top level is not walked.
+//! Instances are visited nearest world box first by a best-first walk of the top level
+//! (`TopLevel::nearest_first`), after the instances added or moved since its last build or
+//! update, stopping at the first box farther than the best distance so far.
 
 use glam::DVec3;
 
@@ -22,7 +23,6 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use super::{Scene, SceneMesh, SceneRay, SceneStructure, BATCH_GRAIN};
-use crate::geometry::Aabb;
 use crate::proximity::{closest_point_on_triangle, ClosestPointTree, NearestPointSearch};
 
 /// The nearest surface point of a scene to a query point.
@@ -117,33 +117,40 @@ impl SceneNearestPoints<'_> {
             return None;
         }
         let scene = self.scene;
-        let mut order: Vec<(f64, u32)> = scene
-            .instances
-            .iter()
-            .enumerate()
-            .filter(|(_, i)| {
-                i.state != InstanceState::Removed && i.mask & mask != 0 && !i.world_box.is_empty()
-            })
-            .map(|(id, i)| (box_distance(&i.world_box, p), id as u32))
-            .collect();
-        order.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let mut best: Option<SceneClosestPoint> = None;
-        for (near, id) in order {
-            // A box farther than the best can hold nothing nearer; one as far may hold a tie.
-            if best.is_some_and(|b| near > b.distance) {
-                break;
+        // Searches instance `id` (if the mask sees it), keeps its point if nearer (ties: the
+        // smaller instance, then prim), and returns the best distance so far.
+        let mut consider = |id: u32| {
+            let instance = &scene.instances[id as usize];
+            if instance.mask & mask != 0 {
+                if let Some(found) = self.closest_on(id, instance, p) {
+                    let closer = best.is_none_or(|b| {
+                        found.distance < b.distance
+                            || (found.distance == b.distance
+                                && (id, found.prim) < (b.instance, b.prim))
+                    });
+                    if closer {
+                        best = Some(found);
+                    }
+                }
             }
-            let Some(found) = self.closest_on(id, &scene.instances[id as usize], p) else {
-                continue;
-            };
-            let closer = best.is_none_or(|b| {
-                found.distance < b.distance
-                    || (found.distance == b.distance && (id, found.prim) < (b.instance, b.prim))
-            });
-            if closer {
-                best = Some(found);
+            best.map_or(f64::INFINITY, |b| b.distance)
+        };
+        // Instances added or moved since the last build or update, in turn; then the top
+        // level's current leaves, nearest box first, until a box is farther than the best
+        // distance (one as far may hold a tie, and is searched).
+        let mut bound = f64::INFINITY;
+        for &id in &scene.pending {
+            if scene.instances[id as usize].state == InstanceState::Pending {
+                bound = consider(id);
             }
         }
+        scene.top_level.nearest_first(p, |id, _| {
+            if scene.instances[id as usize].state == InstanceState::Indexed {
+                bound = consider(id);
+            }
+            bound
+        });
         best
     }
 
@@ -201,11 +208,4 @@ fn is_similarity(transform: &super::InstanceTransform) -> bool {
     let tolerance = scale2 / (1u64 << 40) as f64;
     let identity = glam::DMat3::IDENTITY * scale2;
     (0..3).all(|c| (gram.col(c) - identity.col(c)).abs().max_element() <= tolerance)
-}
-
-/// The distance from `p` to the nearest point of `bounds`, in f64: 0 inside.
-fn box_distance(bounds: &Aabb, p: DVec3) -> f64 {
-    let below = bounds.min.as_dvec3() - p;
-    let above = p - bounds.max.as_dvec3();
-    below.max(above).max(DVec3::ZERO).length()
 }

@@ -304,11 +304,16 @@ impl Scene {
         Ok(InstanceId(self.instances.len() as u32 - 1))
     }
 
-    /// Builds the top-level BVH over the world boxes of every live instance (binned SAH, binary
-    /// nodes).
+    /// Builds the top-level BVH over the world boxes of every live instance (binned SAH, traced
+    /// in 8-wide nodes: `scene/top_level.rs`).
     pub fn build(&mut self) {
         self.top_level = TopLevel::build(self.instances.iter().map(|i| i.world_box));
         self.index_pending();
+    }
+
+    /// How the scene's meshes are built and laid out.
+    pub fn structure(&self) -> &SceneStructure {
+        &self.structure
     }
 
     pub fn mesh_count(&self) -> usize {

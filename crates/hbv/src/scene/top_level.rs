@@ -13,7 +13,10 @@
 //! backwards sweep sees every child before its parent. The wide nodes are collapsed again at
 //! every build and refit; an insertion is walked only after the refit that follows it.
 
-use glam::Vec3;
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+use glam::{DVec3, Vec3};
 
 use super::wide_top_level::WideTopLevel;
 use crate::geometry::{Aabb, PreparedRay};
@@ -291,6 +294,68 @@ impl TopLevel {
     ) {
         debug_assert!(!self.stale, "a walk between an insertion and its refit");
         self.wide.walk(ray, pad, visit);
+    }
+}
+
+impl TopLevel {
+    /// Calls `visit(instance, distance)` with the leaves in the order of their boxes' distance
+    /// from `p` (0 inside a box), nearest first, skipping empty boxes, and stops before the
+    /// first leaf farther than the bound `visit` returns (start: +∞). A best-first walk over
+    /// the binary nodes with a priority queue (the branch and bound of nearest-neighbour
+    /// search: a node's box distance bounds every leaf under it from below, so no leaf nearer
+    /// than the bound is passed over). The binary nodes are current after an insertion too.
+    pub fn nearest_first(&self, p: DVec3, mut visit: impl FnMut(u32, f64) -> f64) {
+        let Some(root) = self.nodes.first() else {
+            return;
+        };
+        let mut bound = f64::INFINITY;
+        let mut queue = BinaryHeap::new();
+        queue.push(Reverse(NodeDistance(box_distance(&root.bounds, p), 0)));
+        while let Some(Reverse(NodeDistance(distance, index))) = queue.pop() {
+            if distance > bound {
+                break;
+            }
+            let node = self.nodes[index as usize];
+            if node.is_leaf {
+                bound = visit(node.first, distance);
+                continue;
+            }
+            for child in [node.first, node.first + 1] {
+                let bounds = &self.nodes[child as usize].bounds;
+                if !bounds.is_empty() {
+                    queue.push(Reverse(NodeDistance(box_distance(bounds, p), child)));
+                }
+            }
+        }
+    }
+}
+
+/// The distance from `p` to the nearest point of `bounds`, in f64: 0 inside, +∞ for an empty
+/// box.
+fn box_distance(bounds: &Aabb, p: DVec3) -> f64 {
+    if bounds.is_empty() {
+        return f64::INFINITY;
+    }
+    let below = bounds.min.as_dvec3() - p;
+    let above = p - bounds.max.as_dvec3();
+    below.max(above).max(DVec3::ZERO).length()
+}
+
+/// A node's box distance and index, ordered by distance (then index, for a total order).
+#[derive(Clone, Copy, PartialEq)]
+struct NodeDistance(f64, u32);
+
+impl Eq for NodeDistance {}
+
+impl PartialOrd for NodeDistance {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for NodeDistance {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
     }
 }
 
