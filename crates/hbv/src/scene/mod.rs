@@ -384,7 +384,7 @@ impl Scene {
     }
 
     /// `hit` with its world normal, computed from its instance's triangle.
-    fn with_normal(&self, hit: SceneHit) -> SceneHit {
+    pub(super) fn with_normal(&self, hit: SceneHit) -> SceneHit {
         let i = &self.instances[hit.instance as usize];
         let triangle = self.meshes[i.mesh as usize]
             .mesh
