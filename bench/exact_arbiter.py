@@ -98,6 +98,22 @@ def exact_hits(tris, candidates, o, d, tmin, tmax, corners=None):
     return sorted(hits)
 
 
+VERDICTS = ("both right (a tie)", "other right", "reference right", "neither")
+
+
+def verdict(right_a, right_b):
+    """The tally's key for a ray on which the reference (a) and the other answer (b) were
+    judged against the exact one."""
+    return ("both right (a tie)" if right_a and right_b else "other right" if right_b
+            else "reference right" if right_a else "neither")
+
+
+def hit_detail(a, b, ids_a, ids_b, i, name):
+    """Both answers to ray `i`, for a line on a ray decided against one of them."""
+    return (f"; reference hit={a['hit'][i]} t={a['t'][i]:.9g} {name}={ids_a[i]}"
+            f", other hit={b['hit'][i]} t={b['t'][i]:.9g} {name}={ids_b[i]}")
+
+
 def main():
     import hbv
 
@@ -119,7 +135,7 @@ def main():
         differ = np.nonzero((fa != fb) | (fa & fb & (a["prim"] != b["prim"]) & (a["t"] != b["t"])))[0]
     sample = np.random.default_rng(args.seed).permutation(differ)[: args.sample]
     print(f"{len(differ)} of {n} rays disagree; deciding {len(sample)} exactly")
-    tally = {"both right (a tie)": 0, "other right": 0, "reference right": 0, "neither": 0}
+    tally = dict.fromkeys(VERDICTS, 0)
     for i in sample:
         hits = exact_hits(tris, plausible(tris, o[i], d[i], tmin[i], tmax[i]), o[i], d[i], tmin[i], tmax[i])
         if args.occluded:
@@ -134,13 +150,10 @@ def main():
         else:
             right_a, right_b = not fa[i], not fb[i]
             exact = "miss"
-        key = ("both right (a tie)" if right_a and right_b else "other right" if right_b
-               else "reference right" if right_a else "neither")
+        key = verdict(right_a, right_b)
         tally[key] += 1
         if not right_b:
-            detail = "" if args.occluded else (
-                f"; reference hit={fa[i]} t={a['t'][i]:.9g} prim={a['prim'][i]}"
-                f", other hit={fb[i]} t={b['t'][i]:.9g} prim={b['prim'][i]}")
+            detail = "" if args.occluded else hit_detail(a, b, a["prim"], b["prim"], i, "prim")
             print(f"ray {i}: {key}: exact {exact}{detail}")
     print(tally)
 

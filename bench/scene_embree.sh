@@ -14,6 +14,8 @@ PY=${PY:-../py-bench-venv/bin/python}
 O=${O:-../shared/oracle/embree_oracle.py}
 OUT=${1:-.cache/scenes}
 RAYS=${RAYS:-200000}
+mkdir -p "$OUT"
+OUT=$(cd "$OUT" && pwd)
 [ -f "$O" ] || { echo "scene_embree.sh: no Embree oracle at $O (set O)" >&2; exit 2; }
 cargo build --release -q -p hbv --example scene_write_glb
 cargo build --release -q -p hbv-cli --example scene_trace
@@ -33,7 +35,7 @@ for glb in "$OUT"/*.glb; do
     [ -n "$args" ] && { ref=${s}_occ.npz; mine=${s}_mine_occ.npz; }
     $PY "$O" compare "$ref" "$mine" --rays "${s}_rays.npz" --exclude-kinds on_surface_tmin0 \
       --min-agreement 0.9995 | tail -1
-    (cd bench && $PY scene_exact_arbiter.py "../$glb" "../${s}_rays.npz" "../$ref" "../$mine" \
+    (cd bench && $PY scene_exact_arbiter.py "$glb" "${s}_rays.npz" "$ref" "$mine" \
       --exclude-kinds on_surface_tmin0 --sample 1000 $args | grep -v "^ray " )
   done
   # Timing: two rounds, each Embree's two-level loop, then hbv's scene and hbv's flattened BVH,

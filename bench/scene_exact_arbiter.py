@@ -30,7 +30,7 @@ from fractions import Fraction
 
 import numpy as np
 
-from exact_arbiter import exact_hits, plausible
+from exact_arbiter import VERDICTS, exact_hits, hit_detail, plausible, verdict
 
 COMPONENTS = {5121: np.uint8, 5123: np.uint16, 5125: np.uint32, 5126: np.float32}
 WIDTH = {"SCALAR": 1, "VEC3": 3}
@@ -181,7 +181,7 @@ def main():
     sample = np.random.default_rng(args.seed).permutation(differ)[: args.sample]
     size = float(np.abs(tris).max())
     print(f"{len(differ)} of {int(keep.sum())} rays disagree; deciding {len(sample)} exactly")
-    tally = {"both right (a tie)": 0, "other right": 0, "reference right": 0, "neither": 0}
+    tally = dict.fromkeys(VERDICTS, 0)
     for i in sample:
         candidates = plausible(tris, o[i], d[i], tmin[i], tmax[i])
         hits = exact_hits(tris, candidates, o[i], d[i], tmin[i], tmax[i], corners=corners)
@@ -210,13 +210,10 @@ def main():
         else:
             right_a, right_b = not fa[i], not fb[i]
             exact = "miss"
-        key = ("both right (a tie)" if right_a and right_b else "other right" if right_b
-               else "reference right" if right_a else "neither")
+        key = verdict(right_a, right_b)
         tally[key] += 1
         if not right_b:
-            detail = "" if args.occluded else (
-                f"; reference hit={fa[i]} t={a['t'][i]:.9g} id={ida[i]}"
-                f", other hit={fb[i]} t={b['t'][i]:.9g} id={idb[i]}")
+            detail = "" if args.occluded else hit_detail(a, b, ida, idb, i, "id")
             kind = str(rays["kind_names"][rays["kind"][i]]) if "kind" in rays.files else ""
             print(f"ray {i} ({key}, {kind}, [{tmin[i]:.9g}, {tmax[i]:.9g}]): exact {exact}{detail}")
     print(tally)
