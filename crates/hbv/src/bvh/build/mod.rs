@@ -9,6 +9,7 @@ mod lbvh;
 mod leaf_policy;
 mod median;
 mod order;
+mod ploc;
 mod range_tree;
 mod sweep_sah;
 
@@ -19,6 +20,7 @@ pub use lbvh::{LbvhBuilder, LbvhConfig};
 pub use leaf_policy::LeafPolicy;
 pub use median::{MedianBuilder, MedianConfig};
 pub use order::InsertionOrder;
+pub use ploc::{PlocBuilder, PlocConfig};
 pub use sweep_sah::{SweepSahBuilder, SweepSahConfig};
 
 // Shared by the top-down builders, which import them as `super::...`.
