@@ -10,6 +10,7 @@ mod leaf_policy;
 mod median;
 mod order;
 mod ploc;
+mod quality;
 mod range_tree;
 mod sweep_sah;
 
@@ -21,6 +22,7 @@ pub use leaf_policy::LeafPolicy;
 pub use median::{MedianBuilder, MedianConfig};
 pub use order::InsertionOrder;
 pub use ploc::{PlocBuilder, PlocConfig};
+pub use quality::BuildQuality;
 pub use sweep_sah::{SweepSahBuilder, SweepSahConfig};
 
 // Shared by the top-down builders, which import them as `super::...`.
