@@ -424,3 +424,118 @@ fn build_compare_rows_agree_with_their_expected_cost_and_plot() {
     );
     assert_eq!(std::fs::read(&plot).unwrap(), png);
 }
+
+/// `hbv info --json` on the built-in scene with `flags`: the report, checked to have succeeded.
+fn info_json(flags: &[&str]) -> serde_json::Value {
+    let mut args = vec!["info", "--json"];
+    args.extend(flags);
+    let out = hbv(&args);
+    assert!(out.status.success(), "{flags:?}: {}", stderr(&out));
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn quality_names_a_builder_and_optimizer_and_explicit_flags_replace_them() {
+    let low = info_json(&["--quality", "low"]);
+    assert_eq!(low["builder"], "lbvh");
+    assert_eq!(low["optimize"], false);
+    let high = info_json(&["--quality", "high"]);
+    assert_eq!(high["builder"], "binned-sah");
+    assert_eq!(high["optimize"], true);
+    let described = high["builder_options"].as_str().unwrap();
+    assert!(
+        described.contains("reinsertion") && described.contains("quality high"),
+        "{described}"
+    );
+    // --builder and --leaf-size replace the quality's builder and leaf size; its optimizer stays.
+    let replaced = info_json(&[
+        "--quality",
+        "high",
+        "--builder",
+        "median",
+        "--leaf-size",
+        "2",
+    ]);
+    assert_eq!(replaced["builder"], "median");
+    assert_eq!(replaced["optimize"], true);
+    let described = replaced["builder_options"].as_str().unwrap();
+    assert!(described.contains("leaf size 2"), "{described}");
+    // Without --quality, `info` builds as it always did.
+    assert_eq!(info_json(&[])["builder"], "insertion");
+
+    let out = hbv(&["info", "--quality", "best"]);
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert!(
+        e.contains("best") && e.contains("low") && e.contains("medium") && e.contains("high"),
+        "{e}"
+    );
+}
+
+#[test]
+fn trace_with_ploc_and_each_quality_matches_brute_force() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = torus(Vec3::new(0.5, -1.0, 2.0), 2.0, 0.7, 40, 20);
+    let path = dir.path().join("torus.obj");
+    write_obj(&mesh, &path);
+    let loaded = TriangleMesh::load(&path).unwrap();
+    let rays = rays_at(&loaded, 2000, 7);
+    let rays_path = dir.path().join("rays.npz");
+    ray_file::write_rays(&rays_path, &rays, hbv::atomic_file::Replace::Always).unwrap();
+    let want = BruteForce::new(&loaded).intersect_batch(&rays);
+    for flags in [
+        ["--builder", "ploc"],
+        ["--quality", "low"],
+        ["--quality", "medium"],
+        ["--quality", "high"],
+    ] {
+        let hits_path = dir.path().join("hits.npz");
+        let mut args = vec![
+            "trace",
+            path.to_str().unwrap(),
+            "--rays",
+            rays_path.to_str().unwrap(),
+            "--out",
+            hits_path.to_str().unwrap(),
+            "--force",
+        ];
+        args.extend(flags);
+        let out = hbv(&args);
+        assert!(out.status.success(), "{flags:?}: {}", stderr(&out));
+        let got = hit_file::read_hits(&hits_path).unwrap();
+        for (i, (w, g)) in want.iter().zip(&got).enumerate() {
+            match (w, g) {
+                (None, None) => {}
+                (Some(w), Some(g)) => assert!(
+                    (w.t - g.t).abs() <= 1e-6 * w.t.abs() && (w.prim == g.prim || w.t == g.t),
+                    "{flags:?} ray {i}: {w:?} vs {g:?}"
+                ),
+                _ => panic!("{flags:?} ray {i}: brute force {w:?}, hbv trace {g:?}"),
+            }
+        }
+    }
+}
+
+#[test]
+fn quality_is_refused_for_a_saved_tree() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("torus.obj");
+    write_obj(&torus(Vec3::ZERO, 2.0, 0.6, 20, 10), &obj);
+    let saved = dir.path().join("torus.hbv");
+    let out = hbv(&[
+        "build",
+        obj.to_str().unwrap(),
+        "-o",
+        saved.to_str().unwrap(),
+        "--quality",
+        "low",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let out = hbv(&["info", saved.to_str().unwrap(), "--quality", "high"]);
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert!(
+        e.contains("holds a saved tree") && e.contains("--quality"),
+        "{e}"
+    );
+}
