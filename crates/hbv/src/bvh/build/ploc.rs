@@ -4,8 +4,8 @@
 use glam::{Vec3A, Vec4};
 use rayon::prelude::*;
 
-use super::{bounds_and_centroid_bounds, prim_refs, Builder, LeafPolicy, PrimRef};
-use crate::bvh::morton::morton_code;
+use super::lbvh::sorted_morton_keys;
+use super::{prim_refs, Builder, LeafPolicy, PrimRef};
 use crate::bvh::{BuildTree, NodeId, NodeList};
 use crate::geometry::Aabb;
 use crate::mesh::TriangleMesh;
@@ -89,14 +89,10 @@ impl PlocBuilder {
 
 /// `prims` sorted by the Morton code of their box centres, ties by their order in `prims`.
 fn morton_sorted(prims: Vec<PrimRef>) -> Vec<PrimRef> {
-    let (_, centroid_bounds) = bounds_and_centroid_bounds(&prims);
-    let mut keys: Vec<(u64, u32)> = prims
+    sorted_morton_keys(&prims)
         .par_iter()
-        .enumerate()
-        .map(|(i, p)| (morton_code(p.centroid(), &centroid_bounds), i as u32))
-        .collect();
-    keys.par_sort_unstable();
-    keys.par_iter().map(|&(_, i)| prims[i as usize]).collect()
+        .map(|&(_, i)| prims[i as usize])
+        .collect()
 }
 
 /// A cluster's box in SIMD registers: the nearest-neighbour search takes the union of two
@@ -271,16 +267,16 @@ fn merge_mutual_pairs(
 ) -> (Vec<ClusterBox>, Vec<u32>) {
     let is_mutual = |i: usize| nearest[nearest[i] as usize] as usize == i;
     // Pass 1: each chunk's counts, then where its survivors and merges go.
-    let counts: Vec<ChunkCounts> = (0..boxes.len())
-        .into_par_iter()
-        .step_by(CHUNK)
-        .map(|start| {
+    let counts: Vec<ChunkCounts> = nearest
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map(|(chunk, nearest_of_chunk)| {
             let mut c = ChunkCounts::default();
-            for i in start..(start + CHUNK).min(boxes.len()) {
-                let leads = (nearest[i] as usize) > i && is_mutual(i);
-                let dropped = (nearest[i] as usize) < i && is_mutual(i);
-                c.merges += usize::from(leads);
-                c.survivors += usize::from(!dropped);
+            for (k, &j) in nearest_of_chunk.iter().enumerate() {
+                let i = chunk * CHUNK + k;
+                let mutual = is_mutual(i);
+                c.merges += usize::from(mutual && j as usize > i);
+                c.survivors += usize::from(!(mutual && (j as usize) < i));
             }
             c
         })
