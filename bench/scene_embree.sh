@@ -3,7 +3,7 @@
 # scenes (crates/hbv/examples/scene_write_glb.rs), makes rays and Embree's answers with the
 # Embree oracle, traces them with hbv (crates/hbv-cli/examples/scene_trace.rs: the scene, and
 # hbv's own BVH over the flattened triangles), compares the answers ray by ray, and times
-# closest hit and any hit on one thread, Embree's loop and hbv's in turn.
+# closest hit and any hit on one thread, Embree's loop and hbv's (a ray a call, and batches) in turn.
 #
 #   PY=../py-bench-venv/bin/python O=../shared/oracle/embree_oracle.py bench/scene_embree.sh [OUT_DIR]
 #
@@ -36,12 +36,15 @@ for glb in "$OUT"/*.glb; do
     (cd bench && $PY scene_exact_arbiter.py "../$glb" "../${s}_rays.npz" "../$ref" "../$mine" \
       --exclude-kinds on_surface_tmin0 --sample 1000 $args | grep -v "^ray " )
   done
-  # Timing: two rounds, each Embree's two-level loop, hbv's scene, hbv's flattened BVH.
+  # Timing: two rounds, each Embree's two-level loop, then hbv's scene and hbv's flattened BVH,
+  # one ray a call and as one batch (interleaved), closest hit and any hit.
   for round in 1 2; do
     $PY "$O" bench "$glb" "${s}_rays.npz" --repeat 3
-    $TRACE "$glb" "${s}_rays.npz" --repeat 5
-    $TRACE "$glb" "${s}_rays.npz" --repeat 5 --occluded
-    $TRACE "${s}_flat.ply" "${s}_rays.npz" --repeat 5
-    $TRACE "${s}_flat.ply" "${s}_rays.npz" --repeat 5 --occluded
+    for input in "$glb" "${s}_flat.ply"; do
+      for batch in "" "--batch"; do
+        $TRACE "$input" "${s}_rays.npz" --repeat 5 $batch
+        $TRACE "$input" "${s}_rays.npz" --repeat 5 --occluded $batch
+      done
+    done
   done
 done

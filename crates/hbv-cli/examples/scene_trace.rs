@@ -4,7 +4,7 @@
 //!
 //! ```text
 //! cargo run --release -p hbv-cli --example scene_trace -- SCENE.glb|MESH.ply RAYS.npz
-//!     [--out HITS.npz] [--occluded] [--repeat N]
+//!     [--out HITS.npz] [--occluded] [--repeat N] [--batch]
 //! ```
 //!
 //! Closest hit by default ([`Scene::intersect`], or the mesh's wide-8 layout's
@@ -12,7 +12,9 @@
 //! [`Accelerator::occluded`]) and writes `occluded`. The set is traced `N` times (default 5);
 //! printed: the median and the best rate in Mrays/s and the hit count, one JSON line. For
 //! BENCHMARKS.md, "Scenes against Embree" (Embree's loop is `embree_oracle.py bench`, one
-//! `rtcIntersect1` / `rtcOccluded1` call a ray).
+//! `rtcIntersect1` / `rtcOccluded1` call a ray). `--batch` traces the set as one batch
+//! ([`Scene::intersect_batch`] / [`Scene::occluded_batch`], or the mesh's
+//! [`Accelerator::intersect_batch`] / [`Accelerator::occluded_batch`]) on a pool of one thread.
 
 use std::fs::File;
 use std::path::PathBuf;
@@ -34,11 +36,13 @@ enum Target {
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut positional = Vec::new();
     let (mut out, mut occluded, mut repeat) = (None::<PathBuf>, false, 5usize);
+    let mut batch = false;
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
         match arg.as_str() {
             "--out" => out = Some(args.next().ok_or("--out needs a path")?.into()),
             "--occluded" => occluded = true,
+            "--batch" => batch = true,
             "--repeat" => repeat = args.next().ok_or("--repeat needs a number")?.parse()?,
             _ => positional.push(PathBuf::from(arg)),
         }
@@ -46,7 +50,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let [input, rays_path] = positional.as_slice() else {
         return Err(
             "usage: scene_trace SCENE.glb|MESH.ply RAYS.npz [--out HITS.npz] \
-                    [--occluded] [--repeat N]"
+                    [--occluded] [--repeat N] [--batch]"
                 .into(),
         );
     };
@@ -68,23 +72,40 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let rays = hbv_cli::ray_file::read_rays(rays_path)?;
     let scene_rays: Vec<SceneRay> = rays.iter().map(|r| SceneRay::new(*r)).collect();
 
+    let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build()?;
     let mut rates = Vec::with_capacity(repeat);
     let mut closest: Vec<Option<SceneHit>> = Vec::new();
     let mut any: Vec<bool> = Vec::new();
     for _ in 0..repeat {
         let start = Instant::now();
-        match (&target, occluded) {
-            (Target::Scene(s), false) => {
+        match (&target, occluded, batch) {
+            (Target::Scene(s), false, false) => {
                 closest = scene_rays.iter().map(|r| s.intersect(r)).collect()
             }
-            (Target::Scene(s), true) => any = scene_rays.iter().map(|r| s.occluded(r)).collect(),
-            (Target::Mesh(m), false) => {
+            (Target::Scene(s), true, false) => {
+                any = scene_rays.iter().map(|r| s.occluded(r)).collect()
+            }
+            (Target::Mesh(m), false, false) => {
                 closest = rays
                     .iter()
                     .map(|r| m.intersect(r).map(as_scene_hit))
                     .collect()
             }
-            (Target::Mesh(m), true) => any = rays.iter().map(|r| m.occluded(r)).collect(),
+            (Target::Mesh(m), true, false) => any = rays.iter().map(|r| m.occluded(r)).collect(),
+            (Target::Scene(s), false, true) => {
+                closest = one_thread.install(|| s.intersect_batch(&scene_rays))
+            }
+            (Target::Scene(s), true, true) => {
+                any = one_thread.install(|| s.occluded_batch(&scene_rays))
+            }
+            (Target::Mesh(m), false, true) => {
+                closest = one_thread
+                    .install(|| m.intersect_batch(&rays))
+                    .into_iter()
+                    .map(|h| h.map(as_scene_hit))
+                    .collect()
+            }
+            (Target::Mesh(m), true, true) => any = one_thread.install(|| m.occluded_batch(&rays)),
         }
         rates.push(rays.len() as f64 / start.elapsed().as_secs_f64() / 1e6);
     }
@@ -95,7 +116,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         closest.iter().flatten().count()
     };
     println!(
-        "{{\"input\": {:?}, \"rays\": {}, \"query\": \"{}\", \"build_s\": {build_s:.3}, \
+        "{{\"input\": {:?}, \"rays\": {}, \"query\": \"{}\", \"batch\": {batch}, \"build_s\": {build_s:.3}, \
          \"mrays_per_s_median\": {:.4}, \"mrays_per_s_best\": {:.4}, \"hits\": {hits}}}",
         input.display().to_string(),
         rays.len(),

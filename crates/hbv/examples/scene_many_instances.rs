@@ -2,7 +2,7 @@
 //! the rays' rate against the mesh's own.
 //!
 //! ```text
-//! cargo run --release -p hbv --example scene_many_instances -- [--instances N] [--rays K] [--runs R] [--only PREFIX]
+//! cargo run --release -p hbv --example scene_many_instances -- [--instances N] [--rays K] [--runs R] [--only PREFIX] [--batches]
 //! ```
 //!
 //! The scene: `N` instances (default 10,000) of one torus of 69,696 triangles (radii 1 and
@@ -21,7 +21,9 @@
 //!   instance's placement; `field` (origins uniform in the field's box, directions uniform on
 //!   the sphere) and `level` (the same origins, directions within 0.2 of the grid's plane:
 //!   each ray crosses many cells). `--only PREFIX` traces only the rows whose name starts so
-//!   (`box, the field`, ...), for profiling.
+//!   (`box, the field`, ...), for profiling. `--batches` times each scene row also as one batch
+//!   ([`Scene::intersect_batch`], [`Scene::occluded_batch`]) on a pool of one thread, the two
+//!   ways alternated round by round, in a row marked `(batch)`.
 
 use std::time::Instant;
 
@@ -41,6 +43,7 @@ const SPACING: f64 = 8.0;
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let (mut instances, mut ray_count, mut runs) = (10_000usize, 200_000usize, 5usize);
     let mut only = None::<String>;
+    let mut batches = false;
     let mut args = std::env::args().skip(1);
     while let Some(arg) = args.next() {
         let mut text = || args.next().ok_or(format!("{arg} needs a value"));
@@ -49,6 +52,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             "--rays" => ray_count = text()?.parse::<usize>()?.max(1),
             "--runs" => runs = text()?.parse::<usize>()?.max(1),
             "--only" => only = Some(text()?),
+            "--batches" => batches = true,
             _ => return Err(format!("unknown argument {arg}").into()),
         }
     }
@@ -172,6 +176,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             return;
         }
         let rays: Vec<SceneRay> = rays.iter().map(|r| SceneRay::new(*r)).collect();
+        if batches {
+            let (single, batch) = single_and_batch_rates(runs, &rays, scene);
+            print_rates(what, single);
+            print_rates(&format!("{what} (batch)"), batch);
+            return;
+        }
         let measured = rates(
             runs,
             &rays,
@@ -206,6 +216,49 @@ fn rates<R>(
     c.sort_by(f64::total_cmp);
     a.sort_by(f64::total_cmp);
     (c[runs / 2], a[runs / 2], hits as f64 / rays.len() as f64)
+}
+
+/// [`rates`] of single rays and of one-thread batches of the same rays on `scene`, the four
+/// timings alternated round by round; the batches' answers checked equal to the single rays'.
+fn single_and_batch_rates(
+    runs: usize,
+    rays: &[SceneRay],
+    scene: &Scene,
+) -> ((f64, f64, f64), (f64, f64, f64)) {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("a pool of one thread");
+    let single: Vec<_> = rays.iter().map(|r| scene.intersect(r)).collect();
+    assert!(pool.install(|| scene.intersect_batch(rays)) == single);
+    let blocked: Vec<bool> = rays.iter().map(|r| scene.occluded(r)).collect();
+    assert!(pool.install(|| scene.occluded_batch(rays)) == blocked);
+    let rate = |work: &dyn Fn()| {
+        let start = Instant::now();
+        work();
+        rays.len() as f64 / start.elapsed().as_secs_f64() / 1e6
+    };
+    let mut timings = [(); 4].map(|_| Vec::with_capacity(runs));
+    for _ in 0..runs {
+        timings[0].push(rate(&|| {
+            std::hint::black_box(rays.iter().filter(|r| scene.intersect(r).is_some()).count());
+        }));
+        timings[1].push(rate(&|| {
+            std::hint::black_box(pool.install(|| scene.intersect_batch(rays)));
+        }));
+        timings[2].push(rate(&|| {
+            std::hint::black_box(rays.iter().filter(|r| scene.occluded(r)).count());
+        }));
+        timings[3].push(rate(&|| {
+            std::hint::black_box(pool.install(|| scene.occluded_batch(rays)));
+        }));
+    }
+    let [c1, cb, a1, ab] = timings.map(|mut v| {
+        v.sort_by(f64::total_cmp);
+        v[runs / 2]
+    });
+    let hits = single.iter().flatten().count() as f64 / rays.len() as f64;
+    ((c1, a1, hits), (cb, ab, hits))
 }
 
 fn print_rates(what: &str, (closest, any, hits): (f64, f64, f64)) {

@@ -184,13 +184,7 @@ fn names() {
 
 #[test]
 fn empty_and_all_degenerate_meshes_give_empty_trees() {
-    let empty = TriangleMesh::new(vec![], vec![]).unwrap();
-    let flat = TriangleMesh::new(
-        vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0],
-        vec![[0, 1, 2], [0, 0, 0]],
-    )
-    .unwrap();
-    for mesh in [empty, flat] {
+    for mesh in common::empty_and_all_degenerate_meshes() {
         for builder in default_builders() {
             assert!(builder.build(&mesh).is_empty(), "{}", builder.name());
         }

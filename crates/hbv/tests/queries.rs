@@ -108,13 +108,7 @@ fn hits_at_exactly_tmin_and_tmax_count() {
 #[test]
 fn empty_and_all_degenerate_meshes_never_hit() {
     let ray = Ray::new(Vec3::new(0.1, 0.1, -1.0), Vec3::Z);
-    let empty = TriangleMesh::new(vec![], vec![]).unwrap();
-    let flat = TriangleMesh::new(
-        vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0],
-        vec![[0, 1, 2], [0, 0, 0]],
-    )
-    .unwrap();
-    for mesh in [empty, flat] {
+    for mesh in common::empty_and_all_degenerate_meshes() {
         for (name, accel) in layouts(&mesh, InsertionOrder::default(), 1) {
             assert_eq!(accel.intersect(&ray), None, "{name}");
             assert!(!accel.occluded(&ray), "{name}");

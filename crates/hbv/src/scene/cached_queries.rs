@@ -201,16 +201,7 @@ impl Scene {
             }
             false
         });
-        best.map(|hit| {
-            let instance = &self.instances[hit.instance as usize];
-            let triangle = self.meshes[instance.mesh as usize]
-                .mesh
-                .triangle(hit.prim as usize);
-            SceneHit {
-                normal: instance.world_normal(&triangle),
-                ..hit
-            }
-        })
+        best.map(|hit| self.with_normal(hit))
     }
 
     /// The first `(instance, prim)` that `occluder(layout, carried ray)` reports among the

@@ -101,6 +101,7 @@ mod inside;
 mod instance;
 mod live;
 mod mesh_motion;
+mod ray_waves;
 mod scene_file;
 mod scene_hit;
 mod structure;
@@ -120,8 +121,6 @@ pub use summary::{MeshSummary, SceneSummary};
 pub use transform::InstanceTransform;
 
 use std::sync::{Arc, OnceLock};
-
-use rayon::prelude::*;
 
 use crate::bvh::layout::AnyLayout;
 use crate::bvh::BuildTree;
@@ -312,6 +311,11 @@ impl Scene {
         self.index_pending();
     }
 
+    /// How the scene's meshes are built and laid out.
+    pub fn structure(&self) -> &SceneStructure {
+        &self.structure
+    }
+
     pub fn mesh_count(&self) -> usize {
         self.meshes.len()
     }
@@ -376,16 +380,19 @@ impl Scene {
             self.closest_in(id, ray, prepared, &mut best);
             false
         });
-        best.map(|hit| {
-            let i = &self.instances[hit.instance as usize];
-            let triangle = self.meshes[i.mesh as usize]
-                .mesh
-                .triangle(hit.prim as usize);
-            SceneHit {
-                normal: i.world_normal(&triangle),
-                ..hit
-            }
-        })
+        best.map(|hit| self.with_normal(hit))
+    }
+
+    /// `hit` with its world normal, computed from its instance's triangle.
+    pub(super) fn with_normal(&self, hit: SceneHit) -> SceneHit {
+        let i = &self.instances[hit.instance as usize];
+        let triangle = self.meshes[i.mesh as usize]
+            .mesh
+            .triangle(hit.prim as usize);
+        SceneHit {
+            normal: i.world_normal(&triangle),
+            ..hit
+        }
     }
 
     /// Whether anything the ray sees is hit within its `[tmin, tmax]`; stops at the first hit.
@@ -431,20 +438,17 @@ impl Scene {
             });
     }
 
-    /// [`Scene::intersect`] of every ray, in parallel on the current rayon pool.
+    /// [`Scene::intersect`] of every ray, in parallel on the current rayon pool: the rays
+    /// traced in waves, each mesh meeting many at once (`scene/ray_waves.rs`), with the
+    /// single-ray answers bit for bit.
     pub fn intersect_batch(&self, rays: &[SceneRay]) -> Vec<Option<SceneHit>> {
-        rays.par_iter()
-            .with_min_len(BATCH_GRAIN)
-            .map(|ray| self.intersect(ray))
-            .collect()
+        self.intersect_waves(rays)
     }
 
-    /// [`Scene::occluded`] of every ray, in parallel on the current rayon pool.
+    /// [`Scene::occluded`] of every ray, in parallel on the current rayon pool, in waves as
+    /// [`Scene::intersect_batch`].
     pub fn occluded_batch(&self, rays: &[SceneRay]) -> Vec<bool> {
-        rays.par_iter()
-            .with_min_len(BATCH_GRAIN)
-            .map(|ray| self.occluded(ray))
-            .collect()
+        self.occluded_waves(rays)
     }
 
     /// Traces instance `id`'s mesh with the ray carried into its space, up to the best `t` so

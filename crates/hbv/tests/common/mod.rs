@@ -134,6 +134,18 @@ pub fn soup() -> impl Strategy<Value = TriangleMesh> {
     })
 }
 
+/// Meshes without a triangle to hit: one with none, one whose triangles are all degenerate (a
+/// collinear one and a point).
+pub fn empty_and_all_degenerate_meshes() -> [TriangleMesh; 2] {
+    let empty = TriangleMesh::new(vec![], vec![]).unwrap();
+    let flat = TriangleMesh::new(
+        vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0],
+        vec![[0, 1, 2], [0, 0, 0]],
+    )
+    .unwrap();
+    [empty, flat]
+}
+
 /// A closed torus with shared edges, randomly sized and placed.
 pub fn closed_mesh() -> impl Strategy<Value = TriangleMesh> {
     (scale(), 3u32..24, 3u32..12, point(1.0))

@@ -25,11 +25,13 @@ pub use ploc::{PlocBuilder, PlocConfig};
 pub use quality::BuildQuality;
 pub use sweep_sah::{SweepSahBuilder, SweepSahConfig};
 
+// What the direct wide build (`layout::wide`) uses of the binned SAH builder: its triangle
+// records and its choice and application of one node's split.
+pub(crate) use binned_sah::{BinCounts, NodeSplit};
+
 // Shared by the top-down builders, which import them as `super::...`.
-use range_tree::{
-    bounds_and_centroid_bounds, prim_refs, PrimRef, RangeTree, SideBounds, Subtree,
-    PARALLEL_SUBTREE_MIN, SAH_DEPTH_LIMIT,
-};
+pub(crate) use range_tree::{bounds_and_centroid_bounds, prim_refs, PrimRef, SideBounds};
+use range_tree::{RangeTree, Subtree, PARALLEL_SUBTREE_MIN, SAH_DEPTH_LIMIT};
 
 use crate::bvh::BuildTree;
 use crate::geometry::Aabb;

@@ -22,9 +22,9 @@ pub(super) const SAH_DEPTH_LIMIT: u32 = 96;
 /// A triangle as the top-down builders move it: its box and its face id, together, so that
 /// binning and partitioning read memory in order instead of chasing ids.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub(super) struct PrimRef {
-    pub(super) bounds: Aabb,
-    pub(super) id: u32,
+pub(crate) struct PrimRef {
+    pub(crate) bounds: Aabb,
+    pub(crate) id: u32,
 }
 
 impl PrimRef {
@@ -36,25 +36,33 @@ impl PrimRef {
 }
 
 /// The non-degenerate triangles of `mesh` in face order (degenerate ones are left out).
-pub(super) fn prim_refs(mesh: &TriangleMesh) -> Vec<PrimRef> {
+pub(crate) fn prim_refs(mesh: &TriangleMesh) -> Vec<PrimRef> {
+    let prim = |i: usize| PrimRef {
+        bounds: mesh.triangle(i).bounds(),
+        id: i as u32,
+    };
+    if mesh.degenerate_count() == 0 {
+        // The mesh counted its degenerate triangles when it was made: none to test (in f64)
+        // and leave out, so each thread writes its share of the array in place.
+        return (0..mesh.triangle_count())
+            .into_par_iter()
+            .with_min_len(4096)
+            .map(prim)
+            .collect();
+    }
     (0..mesh.triangle_count())
         .into_par_iter()
         .with_min_len(4096)
-        .filter_map(|i| {
-            let t = mesh.triangle(i);
-            (!t.is_degenerate()).then(|| PrimRef {
-                bounds: t.bounds(),
-                id: i as u32,
-            })
-        })
+        .filter(|&i| !mesh.triangle(i).is_degenerate())
+        .map(prim)
         .collect()
 }
 
 /// The box of some triangles and the box of their centroids.
-pub(super) type SideBounds = (Aabb, Aabb);
+pub(crate) type SideBounds = (Aabb, Aabb);
 
 /// The box of `prims` and the box of their centroids (in parallel for many triangles).
-pub(super) fn bounds_and_centroid_bounds(prims: &[PrimRef]) -> SideBounds {
+pub(crate) fn bounds_and_centroid_bounds(prims: &[PrimRef]) -> SideBounds {
     const PARALLEL_MIN: usize = 1 << 16;
     let add = |(b, c): (Aabb, Aabb), p: &PrimRef| (b.union(&p.bounds), c.union_point(p.centroid()));
     if prims.len() < PARALLEL_MIN {

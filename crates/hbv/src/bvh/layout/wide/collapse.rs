@@ -2,18 +2,18 @@
 //! binary nodes (the child of largest surface area opened first), each leaf's triangles packed
 //! in fours.
 
-use super::kernels::Kernels;
-use super::node::{leaf_reference, WideNode, MAX_LEAF_TRIANGLES};
-use super::prefetch::PREFETCH_ABOVE_BYTES;
-use super::stream::INTERLEAVE_ABOVE_BYTES;
+use super::leaf_packets::push_leaf_packets;
+use super::node::{WideNode, MAX_LEAF_TRIANGLES};
 use super::{TrianglePacket, WideLayout};
 use crate::bvh::layout::binarize::binary_form;
 use crate::bvh::tree::{BuildTree, NodeId};
-use crate::geometry::{Aabb, PreparedRay};
+use crate::geometry::Aabb;
 use crate::mesh::TriangleMesh;
+use rayon::prelude::*;
 
 impl<const W: usize> WideLayout<W> {
-    const VALID_WIDTH: () = assert!(W == 4 || W == 8, "WideLayout supports widths 4 and 8");
+    pub(super) const VALID_WIDTH: () =
+        assert!(W == 4 || W == 8, "WideLayout supports widths 4 and 8");
 
     /// Lays out `tree` (binarized, then collapsed to `W`-wide nodes).
     pub fn new(tree: &BuildTree, mesh: &TriangleMesh) -> Self {
@@ -21,15 +21,7 @@ impl<const W: usize> WideLayout<W> {
         let () = Self::VALID_WIDTH;
         let binary = binary_form(tree);
         let counts = binary.triangle_counts();
-        let mut layout = Self {
-            nodes: Vec::new(),
-            packets: Vec::new(),
-            root: None,
-            kernels: Kernels::for_this_cpu(W, true),
-            packet_extent: 0.0,
-            prefetch: false,
-            interleave: false,
-        };
+        let mut layout = Self::from_parts(Vec::new(), Vec::new(), None);
         if let Some(root) = binary.root() {
             // About 3.3 triangles per packet and 4 packets per node in the shared scenes:
             // room for all of them at once, rather than copies as the arrays grow.
@@ -38,11 +30,8 @@ impl<const W: usize> WideLayout<W> {
             layout.nodes.reserve(packets / 3 + 1);
             let reference = layout.emit(&binary, &counts, mesh, root);
             let bounds = binary.node(root).bounds;
-            layout.root = Some((reference, bounds, PreparedRay::scene_size(&bounds)));
+            return Self::from_parts(layout.nodes, layout.packets, Some((reference, bounds)));
         }
-        layout.packet_extent = median_packet_extent(&layout.packets);
-        layout.prefetch = layout.memory_bytes() > PREFETCH_ABOVE_BYTES;
-        layout.interleave = layout.memory_bytes() > INTERLEAVE_ABOVE_BYTES;
         layout
     }
 
@@ -96,17 +85,7 @@ impl<const W: usize> WideLayout<W> {
             self.nodes[index as usize] = node;
             return index;
         }
-        let first = self.packets.len() as u32;
-        for chunk in prims.chunks(4) {
-            let triangles: [(u32, crate::geometry::Triangle); 4] = std::array::from_fn(|k| {
-                let p = chunk[k.min(chunk.len() - 1)];
-                (p, mesh.triangle(p as usize))
-            });
-            self.packets
-                .push(TrianglePacket::new(&triangles[..chunk.len()]));
-        }
-        let count = prims.len().div_ceil(4) as u32;
-        leaf_reference(first, count)
+        push_leaf_packets(&mut self.packets, mesh, prims)
     }
 }
 
@@ -153,9 +132,10 @@ fn collapse<const W: usize>(
 }
 
 /// The median over `packets` of the largest extent of each packet's box (0 for none).
-fn median_packet_extent(packets: &[TrianglePacket]) -> f32 {
+pub(super) fn median_packet_extent(packets: &[TrianglePacket]) -> f32 {
     let mut extents: Vec<f32> = packets
-        .iter()
+        .par_iter()
+        .with_min_len(4096)
         .map(|p| {
             let (mut lo, mut hi) = (glam::Vec3::INFINITY, glam::Vec3::NEG_INFINITY);
             for lane in 0..4 {

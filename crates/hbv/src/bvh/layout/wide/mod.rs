@@ -4,6 +4,9 @@
 //! | --- | --- |
 //! | `node.rs` | a node: `W` child boxes as SIMD lanes, and the references to nodes and leaves |
 //! | `collapse.rs` | the layout made from a build tree: binary nodes collapsed into wide ones |
+//! | `direct_build.rs` | the layout built from a mesh by binned SAH, without a build tree |
+//! | `fragment.rs` | a part of a layout built by one task, and the parts joined |
+//! | `leaf_packets.rs` | a leaf's triangles packed in fours |
 //! | `box_kernels.rs` | `W` boxes against one ray: the scalar definition, SSE and AVX |
 //! | `triangle_packet.rs` | four triangles against one ray, the leaves' storage |
 //! | `kernels.rs` | the instruction set the queries run, chosen once per layout |
@@ -17,14 +20,18 @@
 //! | `ray_packet/` | coherent rays traced eight at a time (8-wide nodes, AVX2) |
 //! | `all_hits.rs` | every hit along a ray |
 //! | `lanes.rs` | lane masks |
+//! | `validate.rs` | the layout's invariants, checked |
 
 mod all_hits;
 mod box_kernels;
 mod collapse;
 mod descend;
+mod direct_build;
+mod fragment;
 mod kernels;
 mod lanes;
 mod leaf;
+mod leaf_packets;
 mod node;
 mod prefetch;
 mod queries;
@@ -34,8 +41,9 @@ mod root_filter;
 mod stream;
 mod traversal;
 mod triangle_packet;
+mod validate;
 
-use crate::geometry::Aabb;
+use crate::geometry::{Aabb, PreparedRay};
 use kernels::Kernels;
 use node::WideNode;
 use triangle_packet::TrianglePacket;
@@ -85,6 +93,29 @@ pub type Wide4Layout = WideLayout<4>;
 pub type Wide8Layout = WideLayout<8>;
 
 impl<const W: usize> WideLayout<W> {
+    /// The layout of `nodes` and `packets` under the root reference and box `root` (`None` for
+    /// an empty tree), with the kernels of this CPU and the settings its size calls for.
+    fn from_parts(
+        nodes: Vec<WideNode<W>>,
+        packets: Vec<TrianglePacket>,
+        root: Option<(u32, Aabb)>,
+    ) -> Self {
+        let mut layout = Self {
+            nodes,
+            packets,
+            root: root
+                .map(|(reference, bounds)| (reference, bounds, PreparedRay::scene_size(&bounds))),
+            kernels: Kernels::for_this_cpu(W, true),
+            packet_extent: 0.0,
+            prefetch: false,
+            interleave: false,
+        };
+        layout.packet_extent = collapse::median_packet_extent(&layout.packets);
+        layout.prefetch = layout.memory_bytes() > prefetch::PREFETCH_ABOVE_BYTES;
+        layout.interleave = layout.memory_bytes() > stream::INTERLEAVE_ABOVE_BYTES;
+        layout
+    }
+
     /// This layout with packets of coherent rays in its batches on (the default, where the CPU
     /// has AVX2 and `W` is 8) or off.
     ///
