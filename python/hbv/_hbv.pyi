@@ -73,10 +73,15 @@ def load(path: Union[str, PathLike[str]]) -> Mesh:
 class BVH:
     """A bounding volume hierarchy over a mesh, answering ray and point queries.
 
+    quality: ``"low"`` (LBVH: the fastest build, for rebuilding often), ``"medium"`` (default:
+    binned SAH) or ``"high"`` (binned SAH + reinsertion optimization: the fastest rays);
+    ``builder``, ``optimize`` and ``leaf_size`` given with it replace its choices.
+    builder: ``"binned-sah"``, ``"sweep-sah"``, ``"insertion"``, ``"median"``, ``"lbvh"`` or
+    ``"ploc"`` (default: the quality's).
     optimize: reinsertion optimization (Bittner et al. 2013) after building; None (default):
-    for meshes of at most 1,024 triangles, where it costs about a millisecond and makes modelled
-    scenes (walls around furniture) up to 1.4x faster to trace. ``stats()["optimize"]`` says
-    which was chosen.
+    the quality's choice, and at any quality for meshes of at most 1,024 triangles, where it
+    costs about a millisecond and makes modelled scenes (walls around furniture) up to 1.4x
+    faster to trace. ``stats()["optimize"]`` says which was chosen.
     leaf_size: most triangles per leaf, 1 to 255 (default: the builder's).
 
     The tree is built at once (``stats()["build_seconds"]``); what each kind of query walks is
@@ -90,10 +95,11 @@ class BVH:
     def __init__(
         self,
         mesh: Mesh,
-        builder: str = "binned-sah",
+        builder: Optional[str] = None,
         layout: Optional[str] = None,
         optimize: Optional[bool] = None,
         leaf_size: Optional[int] = None,
+        quality: str = "medium",
     ) -> None: ...
     @property
     def mesh(self) -> Mesh: ...

@@ -192,7 +192,7 @@ def test_every_builder_and_layout_gives_the_same_answers(triangle_soup):
     mesh, _, _ = triangle_soup
     o, d = random_rays(1000)
     want = hbv.BVH(mesh).intersect(o, d)
-    for builder in ["binned-sah", "sweep-sah", "insertion", "median", "lbvh"]:
+    for builder in ["binned-sah", "sweep-sah", "insertion", "median", "lbvh", "ploc"]:
         for layout in ["wide8", "wide4", "ordered", "recursive", "skip"]:
             bvh = hbv.BVH(mesh, builder=builder, layout=layout, leaf_size=4)
             got = bvh.intersect(o, d)
@@ -200,6 +200,31 @@ def test_every_builder_and_layout_gives_the_same_answers(triangle_soup):
                 np.testing.assert_array_equal(got[k], want[k], err_msg=f"{builder} {layout} {k}")
     bvh = hbv.BVH(mesh, builder="insertion", optimize=True)
     np.testing.assert_array_equal(bvh.intersect(o, d)["prim"], want["prim"])
+
+
+def test_quality_chooses_builder_and_optimizer_and_explicit_arguments_replace_them(triangle_soup):
+    mesh, _, _ = triangle_soup
+    o, d = random_rays(1000)
+    want = hbv.BVH(mesh).intersect(o, d)
+    for quality, builder, optimize in [
+        ("low", "lbvh", False),
+        ("medium", "binned-sah", False),
+        ("high", "binned-sah", True),
+    ]:
+        # More than 1,024 triangles: no reinsertion unless the quality asks for it.
+        big = hbv.BVH(hbv.Mesh(*icosphere(3)), quality=quality)
+        assert (big.builder, big.stats()["optimize"]) == (builder, optimize)
+        bvh = hbv.BVH(mesh, quality=quality.upper())
+        assert bvh.builder == builder
+        for k in want:
+            np.testing.assert_array_equal(bvh.intersect(o, d)[k], want[k], err_msg=f"{quality} {k}")
+    replaced = hbv.BVH(mesh, quality="high", builder="median", optimize=False, leaf_size=2)
+    assert replaced.builder == "median"
+    assert replaced.stats()["optimize"] is False
+    assert replaced.stats()["leaf_size"] == 2
+    assert hbv.BVH(mesh).builder == "binned-sah"
+    with pytest.raises(ValueError, match="quality: unknown quality \"best\"; expected one of low, medium, high"):
+        hbv.BVH(mesh, quality="best")
 
 
 def room_of_boxes(boxes=6, seed=3):

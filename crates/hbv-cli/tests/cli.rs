@@ -43,21 +43,28 @@ fn rays_at(mesh: &TriangleMesh, count: usize, seed: u64) -> Vec<Ray> {
         .collect()
 }
 
-/// Traces `rays` with `hbv trace` and checks every answer against brute force: same hit, `t`
-/// within 1e-6 relative, the same triangle or another at equal `t`; the same occlusion.
+/// Traces `rays` with `hbv trace` (given `build_flags`) and checks every answer against brute
+/// force: same hit, `t` within 1e-6 relative, the same triangle or another at equal `t`; the same
+/// occlusion.
 fn assert_trace_matches_brute_force(
     mesh_path: &Path,
     mesh: &TriangleMesh,
     rays: &[Ray],
     dir: &Path,
+    build_flags: &[&str],
 ) {
+    let trace = |args: &[&str]| {
+        let mut all = args.to_vec();
+        all.extend(build_flags);
+        hbv(&all)
+    };
     let rays_path = dir.join("rays.npz");
     let hits_path = dir.join("hits.npz");
     let occ_path = dir.join("occluded.npz");
     ray_file::write_rays(&rays_path, rays, hbv::atomic_file::Replace::Always).unwrap();
     let m = mesh_path.to_str().unwrap();
     let r = rays_path.to_str().unwrap();
-    let out = hbv(&[
+    let out = trace(&[
         "trace",
         m,
         "--rays",
@@ -66,7 +73,7 @@ fn assert_trace_matches_brute_force(
         hits_path.to_str().unwrap(),
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
-    let out = hbv(&[
+    let out = trace(&[
         "trace",
         m,
         "--rays",
@@ -121,7 +128,7 @@ fn assert_trace_matches_brute_force(
 
     // Without packets of coherent rays, the same answers, whatever the rays.
     let alone_path = dir.join("alone.npz");
-    let out = hbv(&[
+    let out = trace(&[
         "trace",
         m,
         "--rays",
@@ -147,7 +154,7 @@ fn assert_trace_matches_brute_force(
             "--force",
         ];
         args.extend(query);
-        let out = hbv(&args);
+        let out = trace(&args);
         assert!(out.status.success(), "{}", stderr(&out));
         if query.is_some() {
             assert_eq!(hit_file::read_occlusion(&single_path).unwrap(), occluded);
@@ -234,7 +241,7 @@ fn trace_matches_brute_force_on_a_generated_mesh() {
     let path = dir.path().join("torus.obj");
     write_obj(&mesh, &path);
     let loaded = TriangleMesh::load(&path).unwrap();
-    assert_trace_matches_brute_force(&path, &loaded, &rays_at(&loaded, 4000, 1), dir.path());
+    assert_trace_matches_brute_force(&path, &loaded, &rays_at(&loaded, 4000, 1), dir.path(), &[]);
 }
 
 #[test]
@@ -351,7 +358,7 @@ fn trace_matches_brute_force_on_shared_scenes() {
         }
         let mesh = TriangleMesh::load(&path).unwrap();
         let dir = tempfile::tempdir().unwrap();
-        assert_trace_matches_brute_force(&path, &mesh, &rays_at(&mesh, rays, 7), dir.path());
+        assert_trace_matches_brute_force(&path, &mesh, &rays_at(&mesh, rays, 7), dir.path(), &[]);
     }
 }
 
@@ -423,4 +430,98 @@ fn build_compare_rows_agree_with_their_expected_cost_and_plot() {
         stderr(&again)
     );
     assert_eq!(std::fs::read(&plot).unwrap(), png);
+}
+
+/// `hbv info --json` on the built-in scene with `flags`: the report, checked to have succeeded.
+fn info_json(flags: &[&str]) -> serde_json::Value {
+    let mut args = vec!["info", "--json"];
+    args.extend(flags);
+    let out = hbv(&args);
+    assert!(out.status.success(), "{flags:?}: {}", stderr(&out));
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn quality_names_a_builder_and_optimizer_and_explicit_flags_replace_them() {
+    let low = info_json(&["--quality", "low"]);
+    assert_eq!(low["builder"], "lbvh");
+    assert_eq!(low["optimize"], false);
+    let high = info_json(&["--quality", "high"]);
+    assert_eq!(high["builder"], "binned-sah");
+    assert_eq!(high["optimize"], true);
+    let described = high["builder_options"].as_str().unwrap();
+    assert!(
+        described.contains("reinsertion") && described.contains("quality high"),
+        "{described}"
+    );
+    // --builder and --leaf-size replace the quality's builder and leaf size; its optimizer stays.
+    let replaced = info_json(&[
+        "--quality",
+        "high",
+        "--builder",
+        "median",
+        "--leaf-size",
+        "2",
+    ]);
+    assert_eq!(replaced["builder"], "median");
+    assert_eq!(replaced["optimize"], true);
+    let described = replaced["builder_options"].as_str().unwrap();
+    assert!(described.contains("leaf size 2"), "{described}");
+    // Without --quality, `info` builds as it always did.
+    assert_eq!(info_json(&[])["builder"], "insertion");
+
+    let out = hbv(&["info", "--quality", "best"]);
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert!(
+        e.contains("best") && e.contains("low") && e.contains("medium") && e.contains("high"),
+        "{e}"
+    );
+}
+
+#[test]
+fn trace_with_ploc_and_each_quality_matches_brute_force() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = torus(Vec3::new(0.5, -1.0, 2.0), 2.0, 0.7, 40, 20);
+    let path = dir.path().join("torus.obj");
+    write_obj(&mesh, &path);
+    let loaded = TriangleMesh::load(&path).unwrap();
+    let rays = rays_at(&loaded, 2000, 7);
+    for (k, flags) in [
+        ["--builder", "ploc"],
+        ["--quality", "low"],
+        ["--quality", "medium"],
+        ["--quality", "high"],
+    ]
+    .iter()
+    .enumerate()
+    {
+        let run = dir.path().join(k.to_string());
+        std::fs::create_dir(&run).unwrap();
+        assert_trace_matches_brute_force(&path, &loaded, &rays, &run, flags);
+    }
+}
+
+#[test]
+fn quality_is_refused_for_a_saved_tree() {
+    let dir = tempfile::tempdir().unwrap();
+    let obj = dir.path().join("torus.obj");
+    write_obj(&torus(Vec3::ZERO, 2.0, 0.6, 20, 10), &obj);
+    let saved = dir.path().join("torus.hbv");
+    let out = hbv(&[
+        "build",
+        obj.to_str().unwrap(),
+        "-o",
+        saved.to_str().unwrap(),
+        "--quality",
+        "low",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let out = hbv(&["info", saved.to_str().unwrap(), "--quality", "high"]);
+    assert!(!out.status.success());
+    let e = stderr(&out);
+    assert!(
+        e.contains("holds a saved tree") && e.contains("--quality"),
+        "{e}"
+    );
 }

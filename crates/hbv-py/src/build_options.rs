@@ -1,10 +1,12 @@
-//! `hbv.BVH(mesh, builder=..., layout=..., optimize=..., leaf_size=...)`: the arguments checked
-//! against the library's name tables ([`BuilderKind`], [`LayoutKind`]).
+//! `hbv.BVH(mesh, builder=..., layout=..., optimize=..., leaf_size=..., quality=...)`: the
+//! arguments checked against the library's name tables ([`BuilderKind`], [`LayoutKind`],
+//! [`BuildQuality`]).
 
 use std::sync::Arc;
 
-use hbv::bvh::build::{BuilderKind, BuilderOptions};
+use hbv::bvh::build::{BuildQuality, BuilderKind, BuilderOptions};
 use hbv::bvh::layout::{LayoutKind, LayoutOptions, Wide8Layout};
+use hbv::bvh::optimize::ReinsertionOptimizer;
 use hbv::bvh::BuildTree;
 use hbv::{Accelerator, TriangleMesh};
 use pyo3::exceptions::PyValueError;
@@ -26,6 +28,32 @@ pub struct BuildOptions {
 }
 
 impl BuildOptions {
+    /// The constructor's arguments: the builder, optimizer and leaf size of `quality`, each
+    /// replaced by the argument given for it (`None`: not given). Without `optimize`, a mesh of
+    /// at most 1,024 `triangles` is optimized at any quality, where it costs about a
+    /// millisecond ([`ReinsertionOptimizer::pays_by_default`]).
+    pub fn from_arguments(
+        quality: &str,
+        builder: Option<&str>,
+        layout: Option<&str>,
+        optimize: Option<bool>,
+        leaf_size: Option<usize>,
+        triangles: usize,
+    ) -> PyResult<Self> {
+        let quality: BuildQuality = quality
+            .parse()
+            .map_err(|e| PyValueError::new_err(format!("quality: {e}")))?;
+        let chosen = quality.builder_options();
+        let optimize = optimize
+            .unwrap_or_else(|| chosen.optimize || ReinsertionOptimizer::pays_by_default(triangles));
+        Self::new(
+            builder.unwrap_or(quality.builder().name()),
+            layout,
+            optimize,
+            leaf_size.or(chosen.leaf_size),
+        )
+    }
+
     /// Checks the names (case ignored, `_` and `-` both accepted) and the leaf size.
     pub fn new(
         builder: &str,

@@ -7,7 +7,6 @@ use std::time::Instant;
 
 use hbv::bvh::file::BvhFile;
 use hbv::bvh::layout::Wide8Layout;
-use hbv::bvh::optimize::ReinsertionOptimizer;
 use hbv::bvh::{expected_tests, sah_cost, BuildTree, SahWeights};
 use hbv::proximity::{
     BatchThreads, ClosestPointColumns, ClosestPointTree, ClosestPointsOnDemand, FlatPoints,
@@ -30,14 +29,19 @@ use crate::thread_pool::{one_thread, run_here_or_on_threads, ThreadCount};
 
 /// A bounding volume hierarchy over a mesh, answering ray and point queries.
 ///
-/// BVH(mesh, builder="binned-sah", layout=None, optimize=None, leaf_size=None)
+/// BVH(mesh, builder=None, layout=None, optimize=None, leaf_size=None, quality="medium")
 ///
-/// builder: "binned-sah" (default), "sweep-sah", "insertion", "median" or "lbvh".
+/// quality: "low" (LBVH: the fastest build, for rebuilding often), "medium" (default: binned
+///     SAH) or "high" (binned SAH + reinsertion optimization: the fastest rays); builder,
+///     optimize and leaf_size given with it replace its choices.
+/// builder: "binned-sah" (quality medium's and high's), "sweep-sah", "insertion", "median",
+///     "lbvh" (quality low's) or "ploc".
 /// layout: "wide8" (default, the fastest), "wide4", "ordered", "recursive" or "skip".
 /// optimize: reinsertion optimization (Bittner et al. 2013) after building: True, False, or
-///     None (default) for meshes of at most 1,024 triangles, where it costs about a millisecond
-///     and makes modelled scenes (walls around furniture) up to 1.4x faster to trace. Larger
-///     modelled scenes gain too (True); scanned meshes gain nothing from it.
+///     None (default): the quality's choice, and at any quality for meshes of at most 1,024
+///     triangles, where it costs about a millisecond and makes modelled scenes (walls around
+///     furniture) up to 1.4x faster to trace. Larger modelled scenes gain too (True); scanned
+///     meshes gain nothing from it.
 ///
 /// save(path) writes the tree with its mesh to a `.hbv` file; hbv.load_bvh(path) reads it back
 /// without building again.
@@ -133,20 +137,28 @@ impl PyBvh {
 #[pymethods]
 impl PyBvh {
     #[new]
-    #[pyo3(signature = (mesh, builder="binned-sah", layout=None, optimize=None, leaf_size=None))]
+    #[pyo3(signature = (
+        mesh, builder=None, layout=None, optimize=None, leaf_size=None, quality="medium"
+    ))]
     fn new(
         py: Python<'_>,
         mesh: &Bound<'_, PyAny>,
-        builder: &str,
+        builder: Option<&str>,
         layout: Option<&str>,
         optimize: Option<bool>,
         leaf_size: Option<usize>,
+        quality: &str,
     ) -> PyResult<Self> {
         let mesh = PyMesh::from_argument(mesh)?;
         let triangles = mesh.get().mesh.clone();
-        let optimize = optimize
-            .unwrap_or_else(|| ReinsertionOptimizer::pays_by_default(triangles.triangle_count()));
-        let options = BuildOptions::new(builder, layout, optimize, leaf_size)?;
+        let options = BuildOptions::from_arguments(
+            quality,
+            builder,
+            layout,
+            optimize,
+            leaf_size,
+            triangles.triangle_count(),
+        )?;
         let (tree, build_seconds) = py.detach(|| {
             let start = Instant::now();
             let tree = options.build(&triangles);

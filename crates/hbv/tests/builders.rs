@@ -1,11 +1,12 @@
-//! Property tests of the top-down builders (binned and sweep SAH, median, LBVH): on adversarial
+//! Property tests of the builders (binned and sweep SAH, median, LBVH, PLOC): on adversarial
 //! triangle soups and closed meshes, every tree keeps the tree invariants and answers exactly what
 //! brute force answers; and the SAH builders make cheaper trees than the baselines.
 
 use glam::Vec3;
 use hbv::bvh::build::{
     primitive_bounds, BinnedSahBuilder, BinnedSahConfig, Builder, LbvhBuilder, LbvhConfig,
-    LeafPolicy, MedianBuilder, MedianConfig, SweepSahBuilder, SweepSahConfig,
+    LeafPolicy, MedianBuilder, MedianConfig, PlocBuilder, PlocConfig, SweepSahBuilder,
+    SweepSahConfig,
 };
 use hbv::bvh::layout::RecursiveLayout;
 use hbv::bvh::{sah_cost, BuildTree, NodeContent, SahWeights};
@@ -24,6 +25,7 @@ enum BuilderUnderTest {
     SweepSah(SweepSahConfig),
     Median(MedianConfig),
     Lbvh(LbvhConfig),
+    Ploc(PlocConfig),
 }
 
 impl BuilderUnderTest {
@@ -33,6 +35,7 @@ impl BuilderUnderTest {
             Self::SweepSah(c) => Box::new(SweepSahBuilder::new(c)),
             Self::Median(c) => Box::new(MedianBuilder::new(c)),
             Self::Lbvh(c) => Box::new(LbvhBuilder::new(c)),
+            Self::Ploc(c) => Box::new(PlocBuilder::new(c)),
         }
     }
 
@@ -42,6 +45,7 @@ impl BuilderUnderTest {
             Self::SweepSah(c) => c.leaf.max_leaf_size,
             Self::Median(c) => c.max_leaf_size,
             Self::Lbvh(c) => c.max_leaf_size,
+            Self::Ploc(c) => c.leaf.max_leaf_size,
         }
     }
 }
@@ -73,6 +77,8 @@ fn builder_under_test() -> impl Strategy<Value = BuilderUnderTest> {
         (1usize..=8)
             .prop_map(|max_leaf_size| BuilderUnderTest::Median(MedianConfig { max_leaf_size })),
         (1usize..=8).prop_map(|max_leaf_size| BuilderUnderTest::Lbvh(LbvhConfig { max_leaf_size })),
+        (1usize..=20, leaf_policy())
+            .prop_map(|(radius, leaf)| BuilderUnderTest::Ploc(PlocConfig { radius, leaf })),
     ]
 }
 
@@ -160,19 +166,20 @@ proptest! {
     }
 }
 
-fn default_builders() -> [Box<dyn Builder>; 4] {
+fn default_builders() -> [Box<dyn Builder>; 5] {
     [
         Box::new(BinnedSahBuilder::default()),
         Box::new(SweepSahBuilder::default()),
         Box::new(MedianBuilder::default()),
         Box::new(LbvhBuilder::default()),
+        Box::new(PlocBuilder::default()),
     ]
 }
 
 #[test]
 fn names() {
     let names: Vec<&str> = default_builders().iter().map(|b| b.name()).collect();
-    assert_eq!(names, ["binned-sah", "sweep-sah", "median", "lbvh"]);
+    assert_eq!(names, ["binned-sah", "sweep-sah", "median", "lbvh", "ploc"]);
 }
 
 #[test]
@@ -196,12 +203,13 @@ fn sah_builders_beat_the_baselines_on_the_default_scene() {
             sah_cost(&tree, SahWeights::default())
         })
         .collect();
-    let [binned, sweep, median, lbvh] = cost[..] else {
+    let [binned, sweep, median, lbvh, ploc] = cost[..] else {
         unreachable!()
     };
     assert!(binned < median, "binned {binned}, median {median}");
     assert!(binned < lbvh, "binned {binned}, lbvh {lbvh}");
     assert!(sweep <= binned * 1.02, "sweep {sweep}, binned {binned}");
+    assert!(ploc < lbvh, "ploc {ploc}, lbvh {lbvh}");
 }
 
 #[test]
@@ -253,6 +261,10 @@ fn extreme_coordinates_build_valid_trees() {
             }),
             BuilderUnderTest::Median(MedianConfig { max_leaf_size }),
             BuilderUnderTest::Lbvh(LbvhConfig { max_leaf_size }),
+            BuilderUnderTest::Ploc(PlocConfig {
+                leaf: LeafPolicy::with_max_leaf_size(max_leaf_size),
+                ..PlocConfig::default()
+            }),
         ] {
             let tree = under_test.builder().build(&mesh);
             tree.validate(&bounds, max_leaf_size)

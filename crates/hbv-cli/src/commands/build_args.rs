@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::{Args, ValueEnum};
-use hbv::bvh::build::{Builder, BuilderKind, BuilderOptions, InsertionOrder};
+use hbv::bvh::build::{BuildQuality, Builder, BuilderKind, BuilderOptions, InsertionOrder};
 use hbv::bvh::file::{is_bvh_file, kind_of_bytes, BvhFileKind};
 use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 use hbv::bvh::optimize::ReinsertionOptimizer;
@@ -15,7 +15,7 @@ use hbv::mesh::MeshFormat;
 use hbv::scene::{AnyBvhFile, SceneStructure};
 use hbv::TriangleMesh;
 
-use super::name_values::builder_kind;
+use super::name_values::{build_quality, builder_kind};
 
 /// Detail of the built-in scene (132,480 triangles).
 pub const DEFAULT_SCENE_DETAIL: u32 = 4;
@@ -41,10 +41,15 @@ pub enum OrderName {
 
 #[derive(Args, Clone, Debug)]
 pub struct BuildArgs {
-    /// Tree construction algorithm [default: insertion for `info` (the seed's construction),
-    /// binned-sah for `trace` and `bench` (the fastest tree to trace)].
+    /// Tree construction algorithm [default: --quality's; without it, insertion for `info`
+    /// (the seed's construction), binned-sah for `trace` and `bench` (the fastest tree to
+    /// trace)].
     #[arg(long, value_parser = builder_kind())]
     pub builder: Option<BuilderKind>,
+    /// Build quality: a builder, optimizer and leaf size chosen together. --builder,
+    /// --leaf-size and --optimize given with it replace its choices.
+    #[arg(long, value_parser = build_quality())]
+    pub quality: Option<BuildQuality>,
     /// Insertion order of the insertion builder.
     #[arg(long, value_enum, default_value_t = OrderName::Shuffle)]
     pub order: OrderName,
@@ -65,6 +70,7 @@ impl Default for BuildArgs {
     fn default() -> Self {
         Self {
             builder: None,
+            quality: None,
             order: OrderName::Shuffle,
             seed: 0x5eed,
             optimize: false,
@@ -74,15 +80,22 @@ impl Default for BuildArgs {
 }
 
 impl BuildArgs {
-    /// The builder named, or insertion (the seed's) when none was.
+    /// The builder named, or the quality's, or insertion (the seed's) when neither was.
     pub fn builder_name(&self) -> BuilderKind {
-        self.builder.unwrap_or(BuilderKind::Insertion)
+        self.builder_or(BuilderKind::Insertion)
     }
 
-    /// These options, with `builder` used when none was named.
+    /// The builder named, or the quality's, or `default` when neither was.
+    fn builder_or(&self, default: BuilderKind) -> BuilderKind {
+        self.builder
+            .or(self.quality.map(BuildQuality::builder))
+            .unwrap_or(default)
+    }
+
+    /// These options, with `builder` used when neither a builder nor a quality was named.
     pub fn or_builder(&self, builder: BuilderKind) -> BuildArgs {
         BuildArgs {
-            builder: Some(self.builder.unwrap_or(builder)),
+            builder: Some(self.builder_or(builder)),
             ..self.clone()
         }
     }
@@ -96,23 +109,27 @@ impl BuildArgs {
         layout_options: LayoutOptions,
     ) -> SceneStructure {
         SceneStructure {
-            builder: self.builder.unwrap_or(default),
+            builder: self.builder_or(default),
             builder_options: self.builder_options(),
             layout,
             layout_options,
         }
     }
 
-    /// The library's options for the builder these flags name.
+    /// The library's options for the builder these flags name: the quality's, each replaced by
+    /// the flag given for it.
     pub fn builder_options(&self) -> BuilderOptions {
+        let quality = self
+            .quality
+            .map_or(BuilderOptions::default(), BuildQuality::builder_options);
         BuilderOptions {
-            leaf_size: self.leaf_size.map(|k| k as usize),
+            leaf_size: self.leaf_size.map(|k| k as usize).or(quality.leaf_size),
             insertion_order: match self.order {
                 OrderName::Shuffle => InsertionOrder::Shuffle { seed: self.seed },
                 OrderName::Input => InsertionOrder::Input,
                 OrderName::Morton => InsertionOrder::Morton,
             },
-            optimize: self.optimize,
+            optimize: self.optimize || quality.optimize,
         }
     }
 
@@ -139,7 +156,7 @@ impl BuildArgs {
         };
         let build_seconds = start.elapsed().as_secs_f64();
         let start = Instant::now();
-        if self.optimize {
+        if self.builder_options().optimize {
             ReinsertionOptimizer::default().optimize(&mut tree);
         }
         BuildReport {
@@ -152,7 +169,8 @@ impl BuildArgs {
 
     /// A one-line description of the builder and its options.
     pub fn describe(&self) -> String {
-        let leaf = self
+        let options = self.builder_options();
+        let leaf = options
             .leaf_size
             .map_or("default".to_string(), |k| k.to_string());
         let built = match self.builder_name() {
@@ -172,10 +190,14 @@ impl BuildArgs {
             }
             _ => format!("{} (leaf size {leaf})", self.builder().name()),
         };
-        if self.optimize {
+        let built = if options.optimize {
             built + " + reinsertion optimization"
         } else {
             built
+        };
+        match self.quality {
+            Some(quality) => format!("{built} (quality {quality})"),
+            None => built,
         }
     }
 }
@@ -382,13 +404,18 @@ impl Input {
     }
 }
 
-/// Refuses `--builder`, `--optimize` and `--leaf-size` for the input `name`, which holds a saved
-/// `what` (a tree, a scene) built already.
+/// Refuses `--builder`, `--quality`, `--optimize` and `--leaf-size` for the input `name`, which
+/// holds a saved `what` (a tree, a scene) built already.
 fn refuse_build_options(name: &str, build: &BuildArgs, what: &str) -> anyhow::Result<()> {
-    if build.builder.is_some() || build.optimize || build.leaf_size.is_some() {
+    if build.builder.is_some()
+        || build.quality.is_some()
+        || build.optimize
+        || build.leaf_size.is_some()
+    {
         anyhow::bail!(
-            "{name} holds a saved {what}: --builder, --optimize and --leaf-size apply only to \
-             meshes and glTF scenes, built as they are loaded (rebuild it with `hbv build`)"
+            "{name} holds a saved {what}: --builder, --quality, --optimize and --leaf-size apply \
+             only to meshes and glTF scenes, built as they are loaded (rebuild it with `hbv \
+             build`)"
         );
     }
     Ok(())

@@ -71,7 +71,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
             "builder_options": builder_options,
             "load_seconds": load_seconds,
             "build_seconds": build_seconds,
-            "optimize": args.build.optimize,
+            "optimize": args.build.builder_options().optimize,
             "optimize_seconds": optimize_seconds,
             "search_nodes_per_insertion": evaluated,
             "nodes": shape.nodes,
@@ -119,7 +119,7 @@ pub fn run(args: &InfoArgs) -> anyhow::Result<()> {
     } else {
         println!("build       {build_seconds:.3} s");
     }
-    if args.build.optimize {
+    if args.build.builder_options().optimize {
         println!("optimize    {optimize_seconds:.3} s");
     }
     println!(

@@ -1,13 +1,22 @@
-//! The library's name tables ([`BuilderKind`], [`LayoutKind`]) as clap values: the names clap
+//! The library's name tables ([`BuilderKind`], [`LayoutKind`], [`BuildQuality`]) as clap values: the names clap
 //! offers, checks and lists in `--help` are the library's, with each one's summary.
 
 use clap::builder::{PossibleValue, PossibleValuesParser, TypedValueParser};
-use hbv::bvh::build::BuilderKind;
+use hbv::bvh::build::{BuildQuality, BuilderKind};
 use hbv::bvh::layout::LayoutKind;
 
 /// `--builder NAME`: one of [`BuilderKind::ALL`].
 pub fn builder_kind() -> impl TypedValueParser<Value = BuilderKind> {
     names(&BuilderKind::ALL, BuilderKind::name, BuilderKind::summary)
+}
+
+/// `--quality NAME`: one of [`BuildQuality::ALL`].
+pub fn build_quality() -> impl TypedValueParser<Value = BuildQuality> {
+    names(
+        &BuildQuality::ALL,
+        BuildQuality::name,
+        BuildQuality::summary,
+    )
 }
 
 /// `--layout NAME`: one of [`LayoutKind::ALL`].

@@ -3,7 +3,8 @@
 
 use super::{
     BinnedSahBuilder, BinnedSahConfig, Builder, InsertionBuilder, InsertionConfig, InsertionOrder,
-    LbvhBuilder, LbvhConfig, MedianBuilder, MedianConfig, SweepSahBuilder, SweepSahConfig,
+    LbvhBuilder, LbvhConfig, MedianBuilder, MedianConfig, PlocBuilder, PlocConfig, SweepSahBuilder,
+    SweepSahConfig,
 };
 use crate::bvh::name_table::name_table;
 use crate::bvh::optimize::ReinsertionOptimizer;
@@ -31,6 +32,8 @@ pub enum BuilderKind {
     Median,
     /// Morton-code LBVH ([`LbvhBuilder`]).
     Lbvh,
+    /// Parallel locally-ordered clustering ([`PlocBuilder`]).
+    Ploc,
 }
 
 /// What a builder is asked for beyond its name: every field's default is the builder's own.
@@ -61,12 +64,13 @@ impl BuilderOptions {
 
 impl BuilderKind {
     /// Every builder, in the order tables list them.
-    pub const ALL: [BuilderKind; 5] = [
+    pub const ALL: [BuilderKind; 6] = [
         BuilderKind::Insertion,
         BuilderKind::BinnedSah,
         BuilderKind::SweepSah,
         BuilderKind::Median,
         BuilderKind::Lbvh,
+        BuilderKind::Ploc,
     ];
 
     /// The name used on the command line, in Python and in tables; [`Builder::name`] of the
@@ -78,6 +82,7 @@ impl BuilderKind {
             BuilderKind::SweepSah => "sweep-sah",
             BuilderKind::Median => "median",
             BuilderKind::Lbvh => "lbvh",
+            BuilderKind::Ploc => "ploc",
         }
     }
 
@@ -91,6 +96,9 @@ impl BuilderKind {
             BuilderKind::SweepSah => "Top-down SAH over every split position (full sweep)",
             BuilderKind::Median => "Top-down object-median split (the simple baseline)",
             BuilderKind::Lbvh => "Morton-code LBVH (the fast baseline)",
+            BuilderKind::Ploc => {
+                "Parallel locally-ordered clustering (Meister & Bittner 2018), parallel"
+            }
         }
     }
 
@@ -102,6 +110,7 @@ impl BuilderKind {
             BuilderKind::SweepSah => SweepSahConfig::default().leaf.max_leaf_size,
             BuilderKind::Median => MedianConfig::default().max_leaf_size,
             BuilderKind::Lbvh => LbvhConfig::default().max_leaf_size,
+            BuilderKind::Ploc => PlocConfig::default().leaf.max_leaf_size,
         }
     }
 
@@ -126,6 +135,11 @@ impl BuilderKind {
             BuilderKind::Lbvh => Box::new(LbvhBuilder::new(LbvhConfig {
                 max_leaf_size: leaf,
             })),
+            BuilderKind::Ploc => {
+                let mut config = PlocConfig::default();
+                config.leaf.max_leaf_size = leaf;
+                Box::new(PlocBuilder::new(config))
+            }
         }
     }
 
@@ -162,7 +176,7 @@ mod tests {
         let error = "sah".parse::<BuilderKind>().unwrap_err();
         assert_eq!(
             error.to_string(),
-            "unknown builder \"sah\"; expected one of insertion, binned-sah, sweep-sah, median, lbvh"
+            "unknown builder \"sah\"; expected one of insertion, binned-sah, sweep-sah, median, lbvh, ploc"
         );
     }
 

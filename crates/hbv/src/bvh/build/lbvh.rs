@@ -58,14 +58,7 @@ impl Builder for LbvhBuilder {
 
     fn build(&self, mesh: &TriangleMesh) -> BuildTree {
         let prims = prim_refs(mesh);
-        let (_, centroid_bounds) = bounds_and_centroid_bounds(&prims);
-        // (code, index into `prims`): sorting pairs breaks ties by face order.
-        let mut keys: Vec<(u64, u32)> = prims
-            .par_iter()
-            .enumerate()
-            .map(|(i, p)| (morton_code(p.centroid(), &centroid_bounds), i as u32))
-            .collect();
-        keys.par_sort_unstable();
+        let keys = sorted_morton_keys(&prims);
         let codes: Vec<u64> = keys.par_iter().map(|&(code, _)| code).collect();
         let sorted: Vec<PrimRef> = keys.par_iter().map(|&(_, i)| prims[i as usize]).collect();
 
@@ -100,6 +93,19 @@ impl LbvhBuilder {
             build_right();
         }
     }
+}
+
+/// `(code, index into prims)` of every triangle, sorted: the Morton codes of the box centres in
+/// the centroid bounds, ties broken by the order of `prims` (in parallel).
+pub(super) fn sorted_morton_keys(prims: &[PrimRef]) -> Vec<(u64, u32)> {
+    let (_, centroid_bounds) = bounds_and_centroid_bounds(prims);
+    let mut keys: Vec<(u64, u32)> = prims
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| (morton_code(p.centroid(), &centroid_bounds), i as u32))
+        .collect();
+    keys.par_sort_unstable();
+    keys
 }
 
 /// Where a sorted range of at least 2 codes splits: the first code with the highest differing

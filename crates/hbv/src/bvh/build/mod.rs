@@ -9,6 +9,8 @@ mod lbvh;
 mod leaf_policy;
 mod median;
 mod order;
+mod ploc;
+mod quality;
 mod range_tree;
 mod sweep_sah;
 
@@ -19,6 +21,8 @@ pub use lbvh::{LbvhBuilder, LbvhConfig};
 pub use leaf_policy::LeafPolicy;
 pub use median::{MedianBuilder, MedianConfig};
 pub use order::InsertionOrder;
+pub use ploc::{PlocBuilder, PlocConfig};
+pub use quality::BuildQuality;
 pub use sweep_sah::{SweepSahBuilder, SweepSahConfig};
 
 // What the direct wide build (`layout::wide`) uses of the binned SAH builder: its triangle

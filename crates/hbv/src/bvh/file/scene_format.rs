@@ -31,7 +31,7 @@
 //!   24  8  u64 shuffle seed (0 unless shuffle)
 //! ```
 //!
-//! Codes: builders 1 insertion, 2 binned-sah, 3 sweep-sah, 4 median, 5 lbvh; layouts
+//! Codes: builders 1 insertion, 2 binned-sah, 3 sweep-sah, 4 median, 5 lbvh, 6 ploc; layouts
 //! 1 recursive, 2 skip, 3 ordered, 4 wide4, 5 wide8; insertion orders 0 input, 1 shuffle,
 //! 2 morton. Codes are the file's own, not the enums' order, so that reordering an enum never
 //! changes the meaning of a saved file.
@@ -50,12 +50,13 @@ pub(super) const ORIGIN_SIZE: usize = 24;
 const OPTIMIZE_FLAG: u32 = 1;
 const RAY_PACKETS_FLAG: u32 = 2;
 
-const BUILDER_CODES: [(BuilderKind, u32); 5] = [
+const BUILDER_CODES: [(BuilderKind, u32); 6] = [
     (BuilderKind::Insertion, 1),
     (BuilderKind::BinnedSah, 2),
     (BuilderKind::SweepSah, 3),
     (BuilderKind::Median, 4),
     (BuilderKind::Lbvh, 5),
+    (BuilderKind::Ploc, 6),
 ];
 
 const LAYOUT_CODES: [(LayoutKind, u32); 5] = [
