@@ -24,7 +24,8 @@
 use std::time::Instant;
 
 use hbv::bvh::build::{
-    BinnedSahBuilder, BinnedSahConfig, Builder, LbvhBuilder, MedianBuilder, SweepSahBuilder,
+    BinnedSahBuilder, BinnedSahConfig, Builder, LbvhBuilder, MedianBuilder, PlocBuilder,
+    SweepSahBuilder,
 };
 use hbv::bvh::layout::Wide8Layout;
 use hbv::bvh::{expected_tests, sah_cost, SahWeights};
@@ -72,11 +73,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if structures {
         return structure_times(&paths, runs, BinnedSahBuilder::new(binned));
     }
-    let builders: [Box<dyn Builder>; 4] = [
+    let builders: [Box<dyn Builder>; 5] = [
         Box::new(BinnedSahBuilder::new(binned)),
         Box::new(SweepSahBuilder::default()),
         Box::new(MedianBuilder::default()),
         Box::new(LbvhBuilder::default()),
+        Box::new(PlocBuilder::default()),
     ];
     println!(
         "threads: {}, runs: {runs}\n| mesh | triangles | builder | build s | SAH | E[X] | nodes | depth mean | depth max |\n| --- | ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: |",
