@@ -218,8 +218,10 @@ impl Scene {
     /// Adds `mesh` and builds its BVH; instances place it by the id returned.
     pub fn add_mesh(&mut self, mesh: TriangleMesh) -> MeshId {
         let s = &self.structure;
-        let tree = s.builder.build(&mesh, &s.builder_options);
-        self.add_built_mesh(mesh, &tree)
+        let layout =
+            s.layout
+                .build_and_lay_out(&mesh, s.builder, &s.builder_options, &s.layout_options);
+        self.push_mesh(mesh, layout, DVec3::ZERO)
     }
 
     /// Adds `mesh` with the BVH `tree` already built over it (by any builder), laid out as the
@@ -264,8 +266,9 @@ impl Scene {
         let relative = positions.iter().map(|p| (*p - centre).as_vec3()).collect();
         let mesh = TriangleMesh::new(relative, triangles.to_vec())?;
         let s = &self.structure;
-        let tree = s.builder.build(&mesh, &s.builder_options);
-        let layout = s.layout.lay_out(&tree, &mesh, &s.layout_options);
+        let layout =
+            s.layout
+                .build_and_lay_out(&mesh, s.builder, &s.builder_options, &s.layout_options);
         Ok(self.push_mesh(mesh, layout, centre))
     }
 

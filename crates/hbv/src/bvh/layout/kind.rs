@@ -2,6 +2,7 @@
 //! command line, the Python module and the examples.
 
 use super::{OrderedLayout, RecursiveLayout, SkipLayout, Wide4Layout, Wide8Layout};
+use crate::bvh::build::{BinnedSahConfig, BuilderKind, BuilderOptions};
 use crate::bvh::name_table::name_table;
 use crate::bvh::BuildTree;
 use crate::geometry::Ray;
@@ -103,6 +104,43 @@ impl LayoutKind {
     }
 }
 
+impl LayoutKind {
+    /// Builds `mesh` by `builder` and lays it out in this layout, for callers that keep no build
+    /// tree: binned SAH without optimization into wide nodes is built straight into them
+    /// ([`WideLayout::build_direct`](super::WideLayout::build_direct): the same nodes as
+    /// [`BuilderKind::build`] then [`LayoutKind::lay_out`], without the binary tree between;
+    /// leaves of up to 64 triangles), anything else through the tree.
+    pub fn build_and_lay_out(
+        self,
+        mesh: &TriangleMesh,
+        builder: BuilderKind,
+        builder_options: &BuilderOptions,
+        options: &LayoutOptions,
+    ) -> AnyLayout {
+        let leaf = builder_options
+            .leaf_size
+            .unwrap_or(builder.default_leaf_size());
+        let direct = builder == BuilderKind::BinnedSah && !builder_options.optimize && leaf <= 64;
+        if direct {
+            let mut config = BinnedSahConfig::default();
+            config.leaf.max_leaf_size = leaf;
+            match self {
+                LayoutKind::Wide4 => {
+                    return AnyLayout::Wide4(Wide4Layout::build_direct(mesh, &config))
+                }
+                LayoutKind::Wide8 => {
+                    return AnyLayout::Wide8(
+                        Wide8Layout::build_direct(mesh, &config)
+                            .with_ray_packets(options.ray_packets),
+                    )
+                }
+                _ => {}
+            }
+        }
+        self.lay_out(&builder.build(mesh, builder_options), mesh, options)
+    }
+}
+
 name_table!(LayoutKind, "layout");
 
 /// A tree laid out in the layout a [`LayoutKind`] names: answers every
@@ -173,10 +211,50 @@ impl TraversalKernel for AnyLayout {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bvh::build::{BuilderKind, BuilderOptions};
     use crate::glam::Vec3;
     use crate::mesh::procedural::icosphere;
     use crate::Accelerator;
+
+    #[test]
+    fn building_straight_into_a_layout_answers_as_building_a_tree_first() {
+        let mesh = icosphere(Vec3::ZERO, 1.0, 3);
+        let rays: Vec<Ray> = (0..400)
+            .map(|k| {
+                let a = k as f32 * 0.37;
+                Ray::new(
+                    Vec3::new(3.0 * a.cos(), 0.01 * k as f32 - 2.0, 3.0 * a.sin()),
+                    -Vec3::new(a.cos(), 0.3, a.sin()),
+                )
+            })
+            .collect();
+        for builder in [BuilderKind::BinnedSah, BuilderKind::Lbvh] {
+            for optimize in [false, true] {
+                for leaf_size in [None, Some(1), Some(16), Some(100)] {
+                    let options = BuilderOptions {
+                        leaf_size,
+                        optimize,
+                        ..Default::default()
+                    };
+                    for kind in LayoutKind::ALL {
+                        let direct = kind.build_and_lay_out(
+                            &mesh,
+                            builder,
+                            &options,
+                            &LayoutOptions::default(),
+                        );
+                        let tree = builder.build(&mesh, &options);
+                        let through_tree = kind.lay_out(&tree, &mesh, &LayoutOptions::default());
+                        assert_eq!(direct.kind(), kind);
+                        assert_eq!(
+                            direct.intersect_batch(&rays),
+                            through_tree.intersect_batch(&rays),
+                            "{builder} {kind} {options:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
 
     #[test]
     fn names_round_trip() {
