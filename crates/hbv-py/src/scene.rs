@@ -14,7 +14,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use crate::arrays::float_array;
-use crate::masks::{one_mask, row_masks};
+use crate::masks::{one_mask, row_masks, Masks};
 use crate::ray_queries::{any_hits, closest_hits, hit_counts, RayArgs};
 use crate::scene_arguments::{instance_id, read_transform, MeshKey, NewMesh};
 use crate::scene_file;
@@ -85,6 +85,22 @@ impl PyScene {
         self.state
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    /// What every ray query reads: the rays and their interval, one mask a ray, and the scene
+    /// as it is now.
+    fn ray_query<'py>(
+        &self,
+        py: Python<'py>,
+        origins: &Bound<'py, PyAny>,
+        directions: &Bound<'py, PyAny>,
+        tmin: Option<&Bound<'py, PyAny>>,
+        tmax: Option<&Bound<'py, PyAny>>,
+        mask: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<(RayArgs<'py>, Masks<'py>, Arc<Scene>)> {
+        let args = RayArgs::read(origins, directions, tmin, tmax)?;
+        let masks = row_masks(mask, args.batch().len(), "origins")?;
+        Ok((args, masks, self.current(py)))
     }
 
     /// The scene as it is now, its top level brought up to date first if it changed, for a
@@ -314,9 +330,7 @@ impl PyScene {
         mask: Option<&Bound<'py, PyAny>>,
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        let masks = row_masks(mask, args.batch().len(), "origins")?;
-        let scene = self.current(py);
+        let (args, masks, scene) = self.ray_query(py, origins, directions, tmin, tmax, mask)?;
         let tracer = SceneTracer::new(&scene, args.batch(), masks.as_slice());
         closest_hits(py, &tracer, &args, threads)
     }
@@ -334,9 +348,7 @@ impl PyScene {
         mask: Option<&Bound<'py, PyAny>>,
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        let masks = row_masks(mask, args.batch().len(), "origins")?;
-        let scene = self.current(py);
+        let (args, masks, scene) = self.ray_query(py, origins, directions, tmin, tmax, mask)?;
         let tracer = SceneTracer::new(&scene, args.batch(), masks.as_slice());
         any_hits(py, &tracer, &args, threads)
     }
@@ -356,9 +368,7 @@ impl PyScene {
         mask: Option<&Bound<'py, PyAny>>,
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyTuple>> {
-        let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        let masks = row_masks(mask, args.batch().len(), "origins")?;
-        let scene = self.current(py);
+        let (args, masks, scene) = self.ray_query(py, origins, directions, tmin, tmax, mask)?;
         every_scene_hit(py, &scene, args.batch(), masks.as_slice(), threads)
     }
 
@@ -375,9 +385,7 @@ impl PyScene {
         mask: Option<&Bound<'py, PyAny>>,
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
-        let args = RayArgs::read(origins, directions, tmin, tmax)?;
-        let masks = row_masks(mask, args.batch().len(), "origins")?;
-        let scene = self.current(py);
+        let (args, masks, scene) = self.ray_query(py, origins, directions, tmin, tmax, mask)?;
         let tracer = SceneTracer::new(&scene, args.batch(), masks.as_slice());
         hit_counts(py, || tracer, &args, threads)
     }

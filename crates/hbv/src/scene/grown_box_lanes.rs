@@ -6,11 +6,8 @@
 // counter; iterators over one of them would hide that symmetry.
 #![allow(clippy::needless_range_loop)]
 
+use crate::bvh::layout::LaneBoxes;
 use crate::geometry::PreparedRay;
-
-/// `W` boxes as lanes, structure of arrays: `planes[side][axis][lane]`, side 0 the minimum
-/// corner, side 1 the maximum. An unused lane holds the empty box (`+inf` to `-inf`).
-pub(super) type BoxLanes<const W: usize> = [[[f32; W]; 3]; 2];
 
 /// What the kernel needs of one ray, set once per walk: the ray's origin and inverse
 /// direction, which side of each axis is the near plane, and the pad as it is added to each
@@ -64,7 +61,7 @@ impl GrownBoxRay {
 /// maximum and minimum, leaving its axis unconstrained.
 #[inline]
 pub(super) fn grown_boxes<const W: usize>(
-    boxes: &BoxLanes<W>,
+    boxes: &LaneBoxes<W>,
     ray: &GrownBoxRay,
     tmin: f32,
     tmax: f32,
@@ -87,7 +84,7 @@ pub(super) fn grown_boxes<const W: usize>(
 /// `maxps` / `minps` do when the NaN is their first operand.
 #[cfg_attr(target_arch = "x86_64", allow(dead_code))]
 fn four_scalar<const W: usize>(
-    boxes: &BoxLanes<W>,
+    boxes: &LaneBoxes<W>,
     offset: usize,
     ray: &GrownBoxRay,
     tmin: f32,
@@ -120,7 +117,7 @@ fn four_scalar<const W: usize>(
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn four_sse<const W: usize>(
-    boxes: &BoxLanes<W>,
+    boxes: &LaneBoxes<W>,
     offset: usize,
     ray: &GrownBoxRay,
     tmin: f32,
@@ -175,7 +172,7 @@ mod tests {
         (coordinate(), coordinate(), coordinate()).prop_map(|(x, y, z)| Vec3::new(x, y, z))
     }
 
-    fn lanes_of(boxes: &[Aabb; 8]) -> BoxLanes<8> {
+    fn lanes_of(boxes: &[Aabb; 8]) -> LaneBoxes<8> {
         let mut lanes = [[[0.0; 8]; 3]; 2];
         for (lane, b) in boxes.iter().enumerate() {
             for axis in 0..3 {

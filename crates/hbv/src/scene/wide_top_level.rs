@@ -6,8 +6,9 @@
 
 use glam::Vec3;
 
-use super::grown_box_lanes::{grown_boxes, BoxLanes, GrownBoxRay};
+use super::grown_box_lanes::{grown_boxes, GrownBoxRay};
 use super::top_level::TopNode;
+use crate::bvh::layout::LaneBoxes;
 use crate::bvh::layout::TraversalStack;
 use crate::geometry::{Aabb, PreparedRay};
 
@@ -15,7 +16,7 @@ use crate::geometry::{Aabb, PreparedRay};
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(32))]
 struct WideTopNode<const W: usize> {
-    boxes: BoxLanes<W>,
+    boxes: LaneBoxes<W>,
     /// Per lane: the child node's index, or for a leaf lane the instance id.
     children: [u32; W],
     /// Bit `i`: lane `i` is a leaf.

@@ -25,4 +25,5 @@ pub use ordered::OrderedLayout;
 pub use recursive::RecursiveLayout;
 pub use skip::SkipLayout;
 pub(crate) use stack::TraversalStack;
+pub(crate) use wide::LaneBoxes;
 pub use wide::{Wide4Layout, Wide8Layout, WideLayout};

@@ -43,6 +43,8 @@ mod traversal;
 mod triangle_packet;
 mod validate;
 
+pub(crate) use box_kernels::LaneBoxes;
+
 use crate::geometry::{Aabb, PreparedRay};
 use kernels::Kernels;
 use node::WideNode;
