@@ -188,16 +188,8 @@ impl Scene {
             let layout = &self.meshes[instance.mesh as usize].layout;
             let carried = instance.carry(&world);
             let hit = count_entry(stats, |entry| layout.intersect_counted(&carried, entry));
-            if let Some(hit) = hit.filter(|h| SceneHit::is_closer(h.t, id, h.prim, &best)) {
+            if let Some(hit) = hit.filter(|h| SceneHit::keep_closer(&mut best, id, h)) {
                 prepared.tmax = hit.t;
-                best = Some(SceneHit {
-                    t: hit.t,
-                    u: hit.u,
-                    v: hit.v,
-                    prim: hit.prim,
-                    instance: id,
-                    normal: glam::Vec3::ZERO,
-                });
             }
             false
         });

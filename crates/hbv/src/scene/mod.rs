@@ -129,7 +129,7 @@ use crate::geometry::{Aabb, PreparedRay, Ray};
 use crate::mesh::{MeshError, TriangleMesh};
 use crate::proximity::ClosestPointTree;
 use crate::query::Accelerator;
-use glam::{DAffine3, DVec3, Vec3};
+use glam::{DAffine3, DVec3};
 use instance::{Instance, InstanceState};
 use top_level::TopLevel;
 
@@ -467,17 +467,8 @@ impl Scene {
         let Some(hit) = layout.intersect(&instance.carry(&world)) else {
             return;
         };
-        if SceneHit::is_closer(hit.t, id, hit.prim, best) {
+        if SceneHit::keep_closer(best, id, &hit) {
             prepared.tmax = hit.t;
-            *best = Some(SceneHit {
-                t: hit.t,
-                u: hit.u,
-                v: hit.v,
-                prim: hit.prim,
-                instance: id,
-                // Computed once, for the final hit (`Scene::intersect`).
-                normal: Vec3::ZERO,
-            });
         }
     }
 

@@ -27,7 +27,6 @@
 
 use std::ops::Range;
 
-use glam::Vec3;
 use rayon::prelude::*;
 
 use super::{Scene, SceneHit, SceneRay};
@@ -177,18 +176,7 @@ impl<'a> Wave<'a> {
             });
             for (visit, answer) in self.visits.iter().zip(&answers) {
                 let Some(hit) = answer else { continue };
-                let best = &mut hits[visit.ray as usize];
-                if SceneHit::is_closer(hit.t, visit.instance, hit.prim, best) {
-                    *best = Some(SceneHit {
-                        t: hit.t,
-                        u: hit.u,
-                        v: hit.v,
-                        prim: hit.prim,
-                        instance: visit.instance,
-                        // Computed once, for the final hit.
-                        normal: Vec3::ZERO,
-                    });
-                }
+                SceneHit::keep_closer(&mut hits[visit.ray as usize], visit.instance, hit);
             }
         }
         for hit in hits.iter_mut() {

@@ -3,6 +3,7 @@
 use glam::{DVec3, Vec3};
 
 use crate::geometry::Ray;
+use crate::query::Hit;
 
 /// A world-space ray and the instances it sees: instance `i` is seen only if
 /// `mask & mask_i != 0` (a lidar that ignores its own vehicle gives the vehicle a bit its rays
@@ -105,5 +106,23 @@ impl SceneHit {
             None => true,
             Some(b) => t < b.t || (t == b.t && (instance, prim) < (b.instance, b.prim)),
         }
+    }
+
+    /// Puts the mesh hit `hit` on `instance` into `best` when it [`is_closer`](Self::is_closer),
+    /// and says whether it did. Its normal is left zero: it is computed once, for the final hit.
+    #[inline]
+    pub(crate) fn keep_closer(best: &mut Option<SceneHit>, instance: u32, hit: &Hit) -> bool {
+        let closer = Self::is_closer(hit.t, instance, hit.prim, best);
+        if closer {
+            *best = Some(SceneHit {
+                t: hit.t,
+                u: hit.u,
+                v: hit.v,
+                prim: hit.prim,
+                instance,
+                normal: Vec3::ZERO,
+            });
+        }
+        closer
     }
 }
