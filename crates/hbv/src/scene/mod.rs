@@ -53,8 +53,10 @@
 //!
 //! So the scene and a brute force over the flattened triangles ([`FlattenedScene::intersect`])
 //! disagree on hit or miss, or on which triangle is hit, only for rays whose line passes within
-//! `ε` of an edge of a triangle involved, or where two different triangles are hit at `t`s
-//! within the bound below (a near tie). Where both hit the same triangle, `t` agrees to
+//! `ε` of an edge of a triangle involved, where two different triangles are hit at `t`s
+//! within the bound below (a near tie), or where a hit lies within that bound of `tmin` or
+//! `tmax` (a ray starting on a surface: the other's hit may fall just outside the interval).
+//! Where both hit the same triangle, `t` agrees to
 //!
 //! ```text
 //!   |t_scene - t_flat| ≤ ε / |n̂ · d| + 2^-20 (κ + 1) D / |d|,
