@@ -19,7 +19,8 @@ use crate::ray_queries::{any_hits, closest_hits, hit_counts, RayArgs};
 use crate::scene_arguments::{instance_id, read_transform, MeshKey, NewMesh};
 use crate::scene_file;
 use crate::scene_queries::{
-    every_scene_hit, scene_closest_points, scene_inside, MaskedPoints, SceneTracer,
+    every_scene_hit, scene_closest_points, scene_inside, scene_signed_distances, MaskedPoints,
+    SceneTracer,
 };
 use crate::thread_pool::ThreadCount;
 
@@ -437,5 +438,31 @@ impl PyScene {
             masks: masks.as_slice(),
         };
         scene_closest_points(py, &scene, query, threads)
+    }
+
+    /// The distance to the nearest surface among the instances each point's mask sees
+    /// (`closest_point`'s `distance`, float64), negative inside (`contains`): the sign of
+    /// `hbv.BVH.signed_distance` and Open3D's `compute_signed_distance`, the opposite of
+    /// trimesh's. Exact where `contains` is, on closed meshes (a RuntimeWarning otherwise,
+    /// where the sign is one ray's parity); a point on a surface gets 0 of either sign; +inf
+    /// for a point that is not finite or sees no triangle.
+    #[pyo3(signature = (points, mask=None, threads=None))]
+    fn signed_distance<'py>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        mask: Option<&Bound<'py, PyAny>>,
+        threads: Option<ThreadCount>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let (points, rows) = float_array("points", points, Some(3), None)?;
+        let masks = row_masks(mask, rows, "points")?;
+        self.warn_if_open(py)?;
+        let scene = self.current(py);
+        let query = MaskedPoints {
+            points: points.values(),
+            rows,
+            masks: masks.as_slice(),
+        };
+        scene_signed_distances(py, &scene, query, threads)
     }
 }

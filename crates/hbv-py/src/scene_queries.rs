@@ -209,3 +209,39 @@ pub fn scene_closest_points<'py>(
     out.set_item("instance", instance.into_pyarray(py))?;
     Ok(out)
 }
+
+/// The distance of each point to the nearest surface among the instances its mask sees
+/// (`scene_closest_points`' `distance`), negative where the point lies inside one of them
+/// (`Scene::contains_with_mask`, the exact parity test): as `hbv.BVH.signed_distance` and
+/// Open3D's `compute_signed_distance`. `+inf` where there is no nearest point (a point not
+/// finite, or no triangle seen).
+pub fn scene_signed_distances<'py>(
+    py: Python<'py>,
+    scene: &Scene,
+    query: MaskedPoints<'_>,
+    threads: Option<ThreadCount>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let MaskedPoints {
+        points,
+        rows,
+        masks,
+    } = query;
+    let mut signed = vec![0.0f64; rows];
+    py.detach(|| {
+        let search = scene.nearest_points();
+        fill_rows(threads, &mut signed[..], |first, out| {
+            for (k, signed) in out.iter_mut().enumerate() {
+                let (point, mask) = (points.row3_f64(first + k), masks.at(first + k));
+                let distance = search
+                    .closest_point_with_mask(point, mask)
+                    .map_or(f64::INFINITY, |c| c.distance);
+                *signed = if scene.contains_with_mask(point, mask) {
+                    -distance
+                } else {
+                    distance
+                };
+            }
+        })
+    })?;
+    Ok(signed.into_pyarray(py))
+}
