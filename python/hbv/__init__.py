@@ -38,12 +38,13 @@ two-level BVH: the same queries, answering with the ``instance`` hit and its wor
 attributes (normals, uv, colours) at hits.
 
 ``hbv.trimesh.RayMeshIntersector`` answers trimesh's ray queries with the same meaning;
-``hbv.trimesh.scene`` converts a ``trimesh.Scene``.
+``hbv.trimesh.scene`` converts a ``trimesh.Scene``. ``hbv.open3d.RaycastingScene`` answers
+the queries of Open3D's ``open3d.t.geometry.RaycastingScene``.
 """
 
 from ._hbv import BVH, Grid, Mesh, Scene, __version__, load, load_bvh, load_scene
 from .vertex_attributes import interpolate
-from . import trimesh
+from . import open3d, trimesh
 
 __all__ = [
     "BVH",
@@ -54,6 +55,7 @@ __all__ = [
     "load",
     "load_bvh",
     "load_scene",
+    "open3d",
     "trimesh",
     "__version__",
 ]
