@@ -298,8 +298,9 @@ class RaycastingScene:
         found = self._answerer().closest_point(points, threads=self._run_threads(nthreads))
         geometry_ids, primitive_ids = self._ids(found)
         valid = found["prim"] >= 0
-        rows = np.where(valid, self._normal_offsets[geometry_ids * valid] + found["prim"], 0)
-        normals = np.where(valid[:, None], self._normals[rows] if len(self._normals) else 0, 0)
+        normals = np.zeros((len(points), 3), np.float32)
+        geometry = geometry_ids[valid].astype(np.int64)
+        normals[valid] = self._normals[self._normal_offsets[geometry] + found["prim"][valid]]
         return {
             "points": found["point"].astype(np.float32).reshape(lead + (3,)),
             "geometry_ids": geometry_ids.reshape(lead),
@@ -307,7 +308,7 @@ class RaycastingScene:
             "primitive_uvs": np.stack([found["u"], found["v"]], axis=-1)
             .astype(np.float32)
             .reshape(lead + (2,)),
-            "primitive_normals": np.asarray(normals, np.float32).reshape(lead + (3,)),
+            "primitive_normals": normals.reshape(lead + (3,)),
         }
 
     def compute_distance(self, query_points: Any, nthreads: int = 0) -> np.ndarray:
