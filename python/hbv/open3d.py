@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import sys
 import warnings
 from typing import Any, Dict, Iterator, List, Optional, Tuple
 
@@ -186,15 +187,18 @@ class RaycastingScene:
 
     def _ids(self, answer: Dict[str, np.ndarray]) -> Tuple[np.ndarray, np.ndarray]:
         """(geometry ids, primitive ids) as uint32, INVALID_ID where there is none."""
-        primitive_ids = answer["prim"].astype(np.uint32)
+        primitive_ids = _low_words(answer["prim"])
         if "instance" in answer:
-            return answer["instance"].astype(np.uint32), primitive_ids
-        geometry_ids = np.where(answer["prim"] >= 0, np.uint32(0), np.uint32(INVALID_ID))
-        return geometry_ids, primitive_ids
+            return _low_words(answer["instance"]), primitive_ids
+        # One geometry: 0 where a triangle was found (prim >= 0), INVALID_ID where not (-1):
+        # the high words of prim.
+        return _high_words(answer["prim"]), primitive_ids
 
     def _rays(self, rays: Any) -> Tuple[np.ndarray, np.ndarray, Tuple[int, ...]]:
+        """Origins and directions, each a C-ordered (N, 3) float32 array (copied out of the
+        rows: a NumPy copy costs less than the compiled module's read of a strided view)."""
         flat, lead = _last_axis(rays, "rays", 6)
-        return flat[:, :3], flat[:, 3:], lead
+        return np.ascontiguousarray(flat[:, :3]), np.ascontiguousarray(flat[:, 3:]), lead
 
     def _run_threads(self, nthreads: Any) -> Optional[int]:
         return _threads(nthreads) if int(nthreads) else self._default_threads
@@ -215,7 +219,7 @@ class RaycastingScene:
             "t_hit": hits["t"].reshape(lead),
             "geometry_ids": geometry_ids.reshape(lead),
             "primitive_ids": primitive_ids.reshape(lead),
-            "primitive_uvs": np.stack([hits["u"], hits["v"]], axis=-1).reshape(lead + (2,)),
+            "primitive_uvs": _pairs(hits["u"], hits["v"]).reshape(lead + (2,)),
             "primitive_normals": hits["normal"].reshape(lead + (3,)),
         }
 
@@ -305,9 +309,7 @@ class RaycastingScene:
             "points": found["point"].astype(np.float32).reshape(lead + (3,)),
             "geometry_ids": geometry_ids.reshape(lead),
             "primitive_ids": primitive_ids.reshape(lead),
-            "primitive_uvs": np.stack([found["u"], found["v"]], axis=-1)
-            .astype(np.float32)
-            .reshape(lead + (2,)),
+            "primitive_uvs": _pairs(found["u"], found["v"]).reshape(lead + (2,)),
             "primitive_normals": normals.reshape(lead + (3,)),
         }
 
@@ -391,6 +393,27 @@ def _silenced_runtime_warnings(active: bool) -> Iterator[None]:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)
         yield
+
+
+def _low_words(ids: np.ndarray) -> np.ndarray:
+    """int64 ids (-1: none) as uint32 (INVALID_ID: none): their low 32 bits."""
+    if sys.byteorder == "little":
+        return np.ascontiguousarray(ids.view(np.uint32)[0::2])
+    return ids.astype(np.uint32)
+
+
+def _high_words(ids: np.ndarray) -> np.ndarray:
+    """0 where an int64 id in [0, 2^32) is given, INVALID_ID where it is -1: the high 32 bits."""
+    if sys.byteorder == "little":
+        return np.ascontiguousarray(ids.view(np.uint32)[1::2])
+    return (ids >> 32).astype(np.uint32)
+
+
+def _pairs(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(N, 2) float32 rows (u, v)."""
+    pairs = np.empty((len(u), 2), np.float32)
+    pairs[:, 0], pairs[:, 1] = u, v
+    return pairs
 
 
 def _nan_where_not_finite(distance: np.ndarray, points: np.ndarray) -> np.ndarray:
