@@ -283,6 +283,11 @@ class Scene:
     def closest_point(
         self, points: _Floats, mask: _Mask = None, threads: Optional[int] = None
     ) -> SceneClosestPoints: ...
+    def signed_distance(
+        self, points: _Floats, mask: _Mask = None, threads: Optional[int] = None
+    ) -> npt.NDArray[np.float64]:
+        """closest_point's distance, negative inside (contains), as BVH.signed_distance; +inf
+        for a point that is not finite or sees no triangle."""
     def save(self, path: Union[str, PathLike[str]], overwrite: bool = False) -> None:
         """A .hbv scene file, written atomically; FileExistsError unless overwrite=True."""
     def __reduce__(self) -> Any:
