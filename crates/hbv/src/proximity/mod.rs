@@ -9,6 +9,7 @@
 //! | nearest point, first queries of a fresh tree | [`BuildTreeSearch`], [`ClosestPointsOnDemand`] (`on_demand`) | the same branch and bound over the builder's own tree, f64 decisions triangle by triangle, until the 8-child tree has paid for its making |
 //! | nearest point, the reference | [`closest_point_brute_force`] (`brute_force`) | every triangle decided in f64, the nearest kept: what the tests compare every search with |
 //! | inside a closed mesh | [`inside`] | one ray's parity, from one all-hits traversal (exact under the half-open edge rule); the majority of three for meshes that are not closed |
+//! | inside, many points | [`InsideCells`] (`inside_cells`) | a grid whose cells no triangle touches are decided once (one exact test per run of them), so that only points near the surface need a ray |
 
 mod answers;
 mod batches;
@@ -20,6 +21,7 @@ mod candidate_grid;
 mod closest_point_tree;
 mod enclosure_packet;
 pub mod inside;
+mod inside_cells;
 mod nearest_point_search;
 mod node_frame;
 mod on_demand;
@@ -40,6 +42,7 @@ pub use build_tree_search::BuildTreeSearch;
 pub use candidate_grid::CandidateGridConfig;
 pub use closest_point_tree::ClosestPointTree;
 pub use inside::{contains, contains_along, contains_by_majority};
+pub use inside_cells::{InsideCells, InsideCellsConfig};
 pub use nearest_point_search::NearestPointSearch;
 pub use on_demand::ClosestPointsOnDemand;
 pub use point_triangle::{closest_point_on_triangle, TrianglePoint};

@@ -1,0 +1,242 @@
+//! Inside tests answered by a lookup: a uniform grid over a closed surface whose cells that no
+//! triangle touches are each known to lie inside or outside it.
+//!
+//! A closed cell that no triangle meets is connected and free of the surface, so every point
+//! in it is on the same side as its centre (Jordan); so is every cell of a run of such cells
+//! along x, since neighbours share a face that the surface does not meet. One exact inside test
+//! per run (at its first cell's centre) therefore decides every point of every free cell, and
+//! only the points in cells the surface may touch need a ray. Triangles mark the cells their
+//! box, grown by a margin, overlaps: conservative, so a cell left free is free by at least the
+//! margin, which covers the rounding of a point to its cell and of world coordinates to f32.
+//!
+//! ```text
+//!   row of cells along x:   . . . S S . . . . S . .     S: a triangle's box overlaps it
+//!   runs of free cells:     [ a ]     [  b  ]   [c]     one inside test each, at its first cell
+//! ```
+//!
+//! On the shared scans, a grid of 128 cells along the longest axis leaves 3–6 % of the points
+//! of the mesh's box in surface cells.
+
+use glam::DVec3;
+
+use crate::mesh::TriangleMesh;
+
+/// The knobs of [`InsideCells`].
+#[derive(Clone, Copy, Debug)]
+pub struct InsideCellsConfig {
+    /// Cells along the box's longest axis per cube root of the triangle count (default 4).
+    pub cells_per_cube_root: f64,
+    /// Fewest cells along the longest axis (default 16).
+    pub min_cells: usize,
+    /// Most cells along the longest axis (default 128: 2 million cells for a cube, 2 MB).
+    pub max_cells: usize,
+    /// The margin by which triangles' boxes grow, relative to the box's diagonal and to its
+    /// largest coordinate (default 1e-5): far above the rounding of points to cells and of
+    /// world coordinates to f32.
+    pub relative_margin: f64,
+}
+
+impl Default for InsideCellsConfig {
+    fn default() -> Self {
+        Self {
+            cells_per_cube_root: 4.0,
+            min_cells: 16,
+            max_cells: 128,
+            relative_margin: 1e-5,
+        }
+    }
+}
+
+/// What a cell knows about its points.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Cell {
+    Outside,
+    Inside,
+    /// A triangle's grown box overlaps the cell: its points need the exact test.
+    Surface,
+}
+
+/// A grid over a closed surface's box answering inside tests for the points of the cells that
+/// no triangle touches (see the module notes).
+#[derive(Clone, Debug)]
+pub struct InsideCells {
+    /// The grid's lower corner.
+    low: DVec3,
+    /// 1 / the size of a cell, per axis.
+    inverse_cell: DVec3,
+    /// Cells per axis.
+    dims: [usize; 3],
+    /// Cell `(x, y, z)` at `(z · dims[1] + y) · dims[0] + x`.
+    cells: Vec<Cell>,
+}
+
+impl InsideCells {
+    /// The grid over `mesh` (world-space triangles of closed surfaces), its free cells decided
+    /// by `inside`, the exact test of a batch of points (called once, with one point per run
+    /// of free cells). `None` for a mesh without triangles or with a coordinate not finite.
+    pub fn new(
+        mesh: &TriangleMesh,
+        config: &InsideCellsConfig,
+        inside: impl FnOnce(&[DVec3]) -> Vec<bool>,
+    ) -> Option<Self> {
+        let bounds = mesh.bounds();
+        let (lo, hi) = (bounds.min.as_dvec3(), bounds.max.as_dvec3());
+        if mesh.is_empty() || !(lo.is_finite() && hi.is_finite()) {
+            return None;
+        }
+        let margin = config.relative_margin
+            * ((hi - lo).length() + lo.abs().max(hi.abs()).max_element())
+            + f64::MIN_POSITIVE;
+        let (low, high) = (lo - 2.0 * margin, hi + 2.0 * margin);
+        let longest = (high - low).max_element();
+        let along_longest = (config.cells_per_cube_root * (mesh.triangle_count() as f64).cbrt())
+            .clamp(config.min_cells as f64, config.max_cells as f64);
+        let cell = longest / along_longest.floor();
+        let size = high - low;
+        let dims = [0, 1, 2].map(|a| ((size[a] / cell).ceil() as usize).max(1));
+        let mut grid = Self {
+            low,
+            inverse_cell: DVec3::splat(1.0 / cell),
+            dims,
+            cells: vec![Cell::Outside; dims[0] * dims[1] * dims[2]],
+        };
+        grid.mark_surface(mesh, margin);
+        grid.decide_free_runs(cell, inside);
+        Some(grid)
+    }
+
+    /// Marks `Surface` every cell that a triangle's box, grown by `margin`, overlaps.
+    fn mark_surface(&mut self, mesh: &TriangleMesh, margin: f64) {
+        for triangle in mesh.triangles() {
+            let b = triangle.bounds();
+            let first = self.clamped_cell(b.min.as_dvec3() - margin);
+            let last = self.clamped_cell(b.max.as_dvec3() + margin);
+            for z in first[2]..=last[2] {
+                for y in first[1]..=last[1] {
+                    let row = (z * self.dims[1] + y) * self.dims[0];
+                    self.cells[row + first[0]..=row + last[0]].fill(Cell::Surface);
+                }
+            }
+        }
+    }
+
+    /// Decides each run of free cells along x by the exact test at its first cell's centre.
+    fn decide_free_runs(&mut self, cell: f64, inside: impl FnOnce(&[DVec3]) -> Vec<bool>) {
+        let [nx, ny, nz] = self.dims;
+        // (first cell, one past the last) of each run, and its first cell's centre.
+        let mut runs = Vec::new();
+        let mut centres = Vec::new();
+        for z in 0..nz {
+            for y in 0..ny {
+                let row = (z * ny + y) * nx;
+                let mut x = 0;
+                while x < nx {
+                    if self.cells[row + x] == Cell::Surface {
+                        x += 1;
+                        continue;
+                    }
+                    let start = x;
+                    while x < nx && self.cells[row + x] != Cell::Surface {
+                        x += 1;
+                    }
+                    runs.push((row + start, row + x));
+                    let index = DVec3::new(start as f64, y as f64, z as f64);
+                    centres.push(self.low + (index + 0.5) * cell);
+                }
+            }
+        }
+        let answers = inside(&centres);
+        assert_eq!(answers.len(), runs.len(), "one inside answer per run");
+        for (&(start, end), &inside) in runs.iter().zip(&answers) {
+            let value = if inside { Cell::Inside } else { Cell::Outside };
+            self.cells[start..end].fill(value);
+        }
+    }
+
+    /// The cell holding `p`, each coordinate clamped into the grid.
+    fn clamped_cell(&self, p: DVec3) -> [usize; 3] {
+        let at = (p - self.low) * self.inverse_cell;
+        [0, 1, 2].map(|a| (at[a].floor().max(0.0) as usize).min(self.dims[a] - 1))
+    }
+
+    /// Whether `p` is inside, where its cell knows: `Some(false)` outside the grid (beyond
+    /// every triangle's box) or for a point not finite, `Some(inside)` in a free cell, `None`
+    /// in a surface cell, where the exact test must answer.
+    #[inline]
+    pub fn lookup(&self, p: DVec3) -> Option<bool> {
+        let at = (p - self.low) * self.inverse_cell;
+        // NaN fails every comparison: outside, as the exact test says of it.
+        let within = |a: usize| at[a] >= 0.0 && at[a] < self.dims[a] as f64;
+        if !(within(0) && within(1) && within(2)) {
+            return Some(false);
+        }
+        let [x, y, z] = [0, 1, 2].map(|a| at[a] as usize);
+        match self.cells[(z * self.dims[1] + y) * self.dims[0] + x] {
+            Cell::Outside => Some(false),
+            Cell::Inside => Some(true),
+            Cell::Surface => None,
+        }
+    }
+
+    /// Cells per axis.
+    pub fn dims(&self) -> [usize; 3] {
+        self.dims
+    }
+
+    /// The share of the cells that the surface may touch (0 to 1).
+    pub fn surface_share(&self) -> f64 {
+        let surface = self.cells.iter().filter(|&&c| c == Cell::Surface).count();
+        surface as f64 / self.cells.len() as f64
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
+    use crate::bvh::layout::Wide8Layout;
+    use crate::mesh::procedural::torus;
+    use crate::proximity::contains;
+
+    #[test]
+    fn lookups_agree_with_the_exact_test() {
+        let mesh = torus(Vec3::ZERO, 1.0, 0.4, 40, 24);
+        assert!(mesh.is_closed());
+        let tree = BinnedSahBuilder::new(BinnedSahConfig::default()).build(&mesh);
+        let layout = Wide8Layout::new(&tree, &mesh);
+        let exact = |p: DVec3| contains(&layout, p.as_vec3());
+        let cells = InsideCells::new(&mesh, &InsideCellsConfig::default(), |centres| {
+            centres.iter().map(|&c| exact(c)).collect()
+        })
+        .unwrap();
+        assert!(cells.surface_share() < 0.6, "{}", cells.surface_share());
+        let mut state = 7u64;
+        let mut next = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 * 3.6 - 1.8
+        };
+        let (mut known, mut inside) = (0, 0);
+        for _ in 0..20_000 {
+            let p = DVec3::new(next(), next(), next() * 0.4);
+            if let Some(answer) = cells.lookup(p) {
+                assert_eq!(answer, exact(p), "at {p}");
+                known += 1;
+                inside += usize::from(answer);
+            }
+        }
+        assert!(known > 10_000 && inside > 500, "{known} known, {inside} inside");
+        assert_eq!(cells.lookup(DVec3::splat(f64::NAN)), Some(false));
+        assert_eq!(cells.lookup(DVec3::new(0.0, 0.0, 5.0)), Some(false));
+        // The torus's hole is outside; the middle of its tube inside.
+        assert_eq!(cells.lookup(DVec3::ZERO), Some(false));
+        assert_eq!(cells.lookup(DVec3::new(1.0, 0.0, 0.0)), Some(true));
+    }
+
+    #[test]
+    fn an_empty_mesh_has_no_grid() {
+        let mesh = TriangleMesh::new(Vec::new(), Vec::new()).unwrap();
+        assert!(InsideCells::new(&mesh, &InsideCellsConfig::default(), |_| Vec::new()).is_none());
+    }
+}
