@@ -147,6 +147,8 @@ class RaycastingScene:
         self._default_threads = _threads(nthreads)
         self._geometries: List[_Geometry] = []
         self._structure: Any = None
+        #: One closed geometry's inside tests: a Scene of its BVH (see `_inside_tests`).
+        self._inside_scene: Optional[Scene] = None
         #: Geometry j's triangle i has row ``_normal_offsets[j] + i`` of ``_normals``.
         self._normals = np.zeros((0, 3), np.float32)
         self._normal_offsets = np.zeros(1, np.int64)
@@ -171,6 +173,7 @@ class RaycastingScene:
             self._structure.add(geometry.mesh)
         else:
             self._structure = None
+        self._inside_scene = None
         return len(self._geometries) - 1
 
     def _answerer(self) -> Any:
@@ -185,6 +188,18 @@ class RaycastingScene:
                 self._structure = scene
         return self._structure
 
+    def _inside_tests(self) -> Any:
+        """What answers inside tests: the answerer, but for one closed geometry a Scene of its
+        BVH (its tree laid out again, not built again), whose inside grid answers the points
+        of repeated calls away from the surface without a ray (hbv.Scene.contains)."""
+        structure = self._answerer()
+        if isinstance(structure, BVH) and self._geometries[0].closed:
+            if self._inside_scene is None:
+                self._inside_scene = Scene()
+                self._inside_scene.add(structure)
+            return self._inside_scene
+        return structure
+
     def _ids(self, answer: Dict[str, np.ndarray]) -> Tuple[np.ndarray, np.ndarray]:
         """(geometry ids, primitive ids) as uint32, INVALID_ID where there is none."""
         primitive_ids = _low_words(answer["prim"])
@@ -195,10 +210,15 @@ class RaycastingScene:
         return _high_words(answer["prim"]), primitive_ids
 
     def _rays(self, rays: Any) -> Tuple[np.ndarray, np.ndarray, Tuple[int, ...]]:
-        """Origins and directions, each a C-ordered (N, 3) float32 array (copied out of the
-        rows: a NumPy copy costs less than the compiled module's read of a strided view)."""
+        """Origins and directions, each a C-ordered (N, 3) float32 array copied out of the
+        rows (a NumPy copy costs less than the compiled module's read of a strided view)."""
         flat, lead = _last_axis(rays, "rays", 6)
-        return np.ascontiguousarray(flat[:, :3]), np.ascontiguousarray(flat[:, 3:]), lead
+        # Each half-row as one 12-byte item: one strided copy of N items, not of N rows of 3
+        # (1M rays: 17 ms instead of 24 on the 2-core Xeon VM).
+        halves = np.ascontiguousarray(flat).view(np.dtype((np.void, 12)))
+        origins = np.ascontiguousarray(halves[:, 0]).view(np.float32).reshape(-1, 3)
+        directions = np.ascontiguousarray(halves[:, 1]).view(np.float32).reshape(-1, 3)
+        return origins, directions, lead
 
     def _run_threads(self, nthreads: Any) -> Optional[int]:
         return _threads(nthreads) if int(nthreads) else self._default_threads
@@ -327,8 +347,14 @@ class RaycastingScene:
         sign is hbv's exact inside test; ``nsamples`` (odd, >= 1) is checked and not needed."""
         _check_samples(nsamples)
         points, lead = self._points(query_points)
+        threads = self._run_threads(nthreads)
+        structure, inside_tests = self._answerer(), self._inside_tests()
         with self._quiet_if_open():
-            signed = self._answerer().signed_distance(points, threads=self._run_threads(nthreads))
+            if inside_tests is structure:
+                signed = structure.signed_distance(points, threads=threads)
+            else:
+                signed = structure.closest_point(points, threads=threads)["distance"]
+                np.negative(signed, out=signed, where=inside_tests.contains(points, threads=threads))
         return _nan_where_not_finite(signed, points).reshape(lead)
 
     def compute_occupancy(self, query_points: Any, nthreads: int = 0, nsamples: int = 1) -> np.ndarray:
@@ -337,7 +363,7 @@ class RaycastingScene:
         _check_samples(nsamples)
         points, lead = self._points(query_points)
         with self._quiet_if_open():
-            inside = self._answerer().contains(points, threads=self._run_threads(nthreads))
+            inside = self._inside_tests().contains(points, threads=self._run_threads(nthreads))
         return inside.astype(np.float32).reshape(lead)
 
     def _quiet_if_open(self) -> Any:

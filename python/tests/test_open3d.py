@@ -276,6 +276,45 @@ def test_scene_signed_distance_matches_brute_force():
         scene.signed_distance(np.zeros((3, 2)))
 
 
+def test_scene_inside_grid_answers_as_the_exact_test():
+    """Past 32,768 points without a mask, a scene of closed meshes answers inside tests from
+    its grid of decided cells (hbv::proximity::InsideCells): the same answers as each mesh's
+    own exact test, made again after the scene changes, and not used with a mask."""
+    geometries = CLOSED_SETS["several"]()
+    bvhs = [hbv.BVH(hbv.Mesh(v, f)) for v, f in geometries]
+    scene = hbv.Scene()
+    for bvh in bvhs:
+        scene.add(bvh)
+    rng = np.random.default_rng(17)
+    points = rng.uniform(-1.6, 1.6, (40_000, 3))
+    # Points on and very near the surface, where the cells must send the point to a ray.
+    near = scene.closest_point(points[:2000])["point"]
+    points[:2000] = near + rng.normal(scale=1e-7, size=near.shape)
+
+    def exact(shift=(0.0, 0.0, 0.0)):
+        inside = np.zeros(len(points), bool)
+        for k, bvh in enumerate(bvhs):
+            moved = points - (np.asarray(shift) if k == 1 else 0)
+            inside |= bvh.contains(moved)
+        return inside
+
+    expected = exact()
+    for _ in range(3):  # the first call makes the grid, the later ones use it
+        np.testing.assert_array_equal(scene.contains(points), expected)
+    signed = scene.signed_distance(points)
+    np.testing.assert_array_equal(signed < 0, expected & (signed != 0))
+    shift = (0.05, -0.3, 0.2)
+    scene.set_transform(1, np.array([[1, 0, 0, shift[0]], [0, 1, 0, shift[1]], [0, 0, 1, shift[2]], [0, 0, 0, 1.0]]))
+    for _ in range(2):
+        np.testing.assert_array_equal(scene.contains(points), exact(shift))
+    np.testing.assert_array_equal(scene.contains(points, mask=1), exact(shift))
+    # The drop-in's one closed geometry: a scene of its BVH answers its inside tests.
+    one = scene_of(geometries[:1])
+    for _ in range(2):
+        np.testing.assert_array_equal(one.compute_occupancy(points.astype(np.float32)) == 1,
+                                      bvhs[0].contains(points.astype(np.float32)))
+
+
 def test_leading_shapes_are_kept():
     scene = scene_of(CLOSED_SETS["one"]())
     rays, points = rays_and_points(15, 24)

@@ -7,6 +7,7 @@ use std::ffi::CString;
 use std::path::PathBuf;
 use std::sync::{Arc, Mutex, MutexGuard};
 
+use hbv::proximity::{InsideCells, InsideCellsConfig};
 use hbv::scene::{InstanceId, MeshId, Scene, SceneError};
 use numpy::PyArray1;
 use pyo3::exceptions::{PyRuntimeWarning, PyValueError};
@@ -64,7 +65,19 @@ struct SceneState {
     /// Whether each mesh is closed, for the meshes `contains` has looked at (a mesh's vertices
     /// never change here).
     closed: Vec<bool>,
+    /// The inside grid of the scene as it is, for `contains` and `signed_distance` without a
+    /// mask on closed meshes: made by the call that brings the points they asked since the
+    /// scene last changed to `INSIDE_CELLS_AFTER_POINTS`; dropped when the scene changes.
+    inside_cells: Option<Arc<InsideCells>>,
+    /// The points `contains` and `signed_distance` asked without a mask since the scene last
+    /// changed.
+    inside_points_asked: usize,
 }
+
+/// The points asked of the inside tests after which the scene makes its inside grid
+/// (`InsideCells`): about the number of exact tests the grid's making costs at 128 cells a side
+/// (one per run of free cells), so that a few points never pay for it and many pay once.
+const INSIDE_CELLS_AFTER_POINTS: usize = 32_768;
 
 impl PyScene {
     pub(crate) fn from_scene(scene: Scene) -> Self {
@@ -75,6 +88,8 @@ impl PyScene {
                 meshes_by_key: HashMap::new(),
                 key_objects: Vec::new(),
                 closed: Vec::new(),
+                inside_cells: None,
+                inside_points_asked: 0,
             }),
         }
     }
@@ -109,11 +124,55 @@ impl PyScene {
     pub(crate) fn current(&self, py: Python<'_>) -> Arc<Scene> {
         py.detach(|| {
             let mut state = self.lock();
-            if state.changed {
-                Arc::make_mut(&mut state.scene).update();
-                state.changed = false;
-            }
+            Self::bring_up_to_date(&mut state);
             state.scene.clone()
+        })
+    }
+
+    /// Updates the top level if the scene changed since the last query, dropping what was
+    /// made for the scene as it was.
+    fn bring_up_to_date(state: &mut SceneState) {
+        if state.changed {
+            Arc::make_mut(&mut state.scene).update();
+            state.changed = false;
+            state.inside_cells = None;
+            state.inside_points_asked = 0;
+        }
+    }
+
+    /// The scene as it is now with its inside grid, for an inside test of `rows` points: the
+    /// grid only without a mask (`masked` false) and when every mesh is closed (checked by
+    /// `warn_if_open` first), made here by the call that brings the points asked to
+    /// `INSIDE_CELLS_AFTER_POINTS` (with the GIL released and the lock held, as a change).
+    fn current_with_inside_cells(
+        &self,
+        py: Python<'_>,
+        rows: usize,
+        masked: bool,
+    ) -> (Arc<Scene>, Option<Arc<InsideCells>>) {
+        py.detach(|| {
+            let mut state = self.lock();
+            let state = &mut *state;
+            Self::bring_up_to_date(state);
+            let all_closed = state.closed.len() == state.scene.mesh_count()
+                && state.closed.iter().all(|&closed| closed);
+            if masked || !all_closed {
+                return (state.scene.clone(), None);
+            }
+            state.inside_points_asked = state.inside_points_asked.saturating_add(rows);
+            if state.inside_cells.is_none()
+                && state.inside_points_asked >= INSIDE_CELLS_AFTER_POINTS
+            {
+                let scene = &state.scene;
+                state.inside_cells = scene.flattened().ok().and_then(|world| {
+                    let config = InsideCellsConfig::default();
+                    InsideCells::new(&world.mesh, &config, |centres| {
+                        scene.contains_batch(centres, None)
+                    })
+                    .map(Arc::new)
+                });
+            }
+            (state.scene.clone(), state.inside_cells.clone())
         })
     }
 
@@ -395,7 +454,11 @@ impl PyScene {
     /// array, true where the point is inside one of those instances (the union of their
     /// solids: overlapping instances do not cancel), each decided by its mesh's exact parity
     /// test (hbv::scene::Scene::contains). Defined on closed meshes; a RuntimeWarning when a
-    /// mesh of the scene is not. Points on a surface may go either way.
+    /// mesh of the scene is not. Points on a surface may go either way. Without a mask, on
+    /// closed meshes, the call that brings the points asked since the scene last changed to
+    /// 32,768 makes a grid of the cells no triangle touches, each decided once
+    /// (hbv::proximity::InsideCells), and later points in those cells are looked up there:
+    /// the same answers, most points without a ray.
     #[pyo3(signature = (points, mask=None, threads=None))]
     fn contains<'py>(
         &self,
@@ -407,13 +470,13 @@ impl PyScene {
         let (points, rows) = float_array("points", points, Some(3), None)?;
         let masks = row_masks(mask, rows, "points")?;
         self.warn_if_open(py)?;
-        let scene = self.current(py);
+        let (scene, cells) = self.current_with_inside_cells(py, rows, mask.is_some());
         let query = MaskedPoints {
             points: points.values(),
             rows,
             masks: masks.as_slice(),
         };
-        scene_inside(py, &scene, query, threads)
+        scene_inside(py, &scene, cells.as_deref(), query, threads)
     }
 
     /// The nearest surface point among the instances each point's mask sees: a dict of arrays
@@ -457,12 +520,12 @@ impl PyScene {
         let (points, rows) = float_array("points", points, Some(3), None)?;
         let masks = row_masks(mask, rows, "points")?;
         self.warn_if_open(py)?;
-        let scene = self.current(py);
+        let (scene, cells) = self.current_with_inside_cells(py, rows, mask.is_some());
         let query = MaskedPoints {
             points: points.values(),
             rows,
             masks: masks.as_slice(),
         };
-        scene_signed_distances(py, &scene, query, threads)
+        scene_signed_distances(py, &scene, cells.as_deref(), query, threads)
     }
 }

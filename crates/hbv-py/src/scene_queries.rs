@@ -3,6 +3,8 @@
 //! normal, inside tests and nearest points among the instances a mask sees).
 
 use hbv::geometry::Ray;
+use hbv::glam::DVec3;
+use hbv::proximity::InsideCells;
 use hbv::query::Hit;
 use hbv::scene::{Scene, SceneHit, SceneRay};
 use numpy::{IntoPyArray, PyArray1, PyArrayMethods};
@@ -134,11 +136,22 @@ pub struct MaskedPoints<'a> {
     pub masks: MaskSlice<'a>,
 }
 
+/// Whether `point` lies inside the scene among the instances `mask` sees: from `cells` (made
+/// for this scene, used only without a mask) where its cell knows, else
+/// `Scene::contains_with_mask`.
+#[inline]
+fn inside(scene: &Scene, cells: Option<&InsideCells>, point: DVec3, mask: u32) -> bool {
+    cells
+        .and_then(|cells| cells.lookup(point))
+        .unwrap_or_else(|| scene.contains_with_mask(point, mask))
+}
+
 /// Whether each point lies inside the scene (`Scene::contains_with_mask`), among the
-/// instances its mask sees.
+/// instances its mask sees; `cells` answering the points whose cell knows.
 pub fn scene_inside<'py>(
     py: Python<'py>,
     scene: &Scene,
+    cells: Option<&InsideCells>,
     query: MaskedPoints<'_>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<bool>>> {
@@ -152,7 +165,7 @@ pub fn scene_inside<'py>(
         fill_rows(threads, &mut inside[..], |first, out| {
             for (k, inside) in out.iter_mut().enumerate() {
                 let row = first + k;
-                *inside = scene.contains_with_mask(points.row3_f64(row), masks.at(row));
+                *inside = self::inside(scene, cells, points.row3_f64(row), masks.at(row));
             }
         })
     })?;
@@ -213,11 +226,13 @@ pub fn scene_closest_points<'py>(
 /// The distance of each point to the nearest surface among the instances its mask sees
 /// (`scene_closest_points`' `distance`), negative where the point lies inside one of them
 /// (`Scene::contains_with_mask`, the exact parity test): as `hbv.BVH.signed_distance` and
-/// Open3D's `compute_signed_distance`. `+inf` where there is no nearest point (a point not
-/// finite, or no triangle seen).
+/// Open3D's `compute_signed_distance`; `cells` answering the inside tests of the points whose
+/// cell knows. `+inf` where there is no nearest point (a point not finite, or no triangle
+/// seen).
 pub fn scene_signed_distances<'py>(
     py: Python<'py>,
     scene: &Scene,
+    cells: Option<&InsideCells>,
     query: MaskedPoints<'_>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
@@ -235,7 +250,7 @@ pub fn scene_signed_distances<'py>(
                 let distance = search
                     .closest_point_with_mask(point, mask)
                     .map_or(f64::INFINITY, |c| c.distance);
-                *signed = if scene.contains_with_mask(point, mask) {
+                *signed = if inside(scene, cells, point, mask) {
                     -distance
                 } else {
                     distance

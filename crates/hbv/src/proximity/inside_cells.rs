@@ -39,9 +39,9 @@ pub struct InsideCellsConfig {
 impl Default for InsideCellsConfig {
     fn default() -> Self {
         Self {
-            cells_per_cube_root: 4.0,
+            cells_per_cube_root: 8.0,
             min_cells: 16,
-            max_cells: 128,
+            max_cells: 192,
             relative_margin: 1e-5,
         }
     }
@@ -214,7 +214,9 @@ mod tests {
         assert!(cells.surface_share() < 0.6, "{}", cells.surface_share());
         let mut state = 7u64;
         let mut next = || {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (state >> 11) as f64 / (1u64 << 53) as f64 * 3.6 - 1.8
         };
         let (mut known, mut inside) = (0, 0);
@@ -226,7 +228,10 @@ mod tests {
                 inside += usize::from(answer);
             }
         }
-        assert!(known > 10_000 && inside > 500, "{known} known, {inside} inside");
+        assert!(
+            known > 10_000 && inside > 500,
+            "{known} known, {inside} inside"
+        );
         assert_eq!(cells.lookup(DVec3::splat(f64::NAN)), Some(false));
         assert_eq!(cells.lookup(DVec3::new(0.0, 0.0, 5.0)), Some(false));
         // The torus's hole is outside; the middle of its tube inside.
