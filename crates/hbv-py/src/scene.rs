@@ -21,7 +21,7 @@ use crate::scene_arguments::{instance_id, read_transform, MeshKey, NewMesh};
 use crate::scene_file;
 use crate::scene_queries::{
     every_scene_hit, scene_closest_points, scene_inside, scene_signed_distances, MaskedPoints,
-    SceneTracer,
+    SceneInsideCells, SceneTracer,
 };
 use crate::thread_pool::ThreadCount;
 
@@ -68,7 +68,7 @@ struct SceneState {
     /// The inside grid of the scene as it is, for `contains` and `signed_distance` without a
     /// mask on closed meshes: made by the call that brings the points they asked since the
     /// scene last changed to `INSIDE_CELLS_AFTER_POINTS`; dropped when the scene changes.
-    inside_cells: Option<Arc<InsideCells>>,
+    inside_cells: Option<Arc<SceneInsideCells>>,
     /// The points `contains` and `signed_distance` asked without a mask since the scene last
     /// changed.
     inside_points_asked: usize,
@@ -149,7 +149,7 @@ impl PyScene {
         py: Python<'_>,
         rows: usize,
         masked: bool,
-    ) -> (Arc<Scene>, Option<Arc<InsideCells>>) {
+    ) -> (Arc<Scene>, Option<Arc<SceneInsideCells>>) {
         py.detach(|| {
             let mut state = self.lock();
             let state = &mut *state;
@@ -164,12 +164,13 @@ impl PyScene {
                 && state.inside_points_asked >= INSIDE_CELLS_AFTER_POINTS
             {
                 let scene = &state.scene;
+                let by_segments = scene.live_instance_count() == 1;
                 state.inside_cells = scene.flattened().ok().and_then(|world| {
                     let config = InsideCellsConfig::default();
-                    InsideCells::new(&world.mesh, &config, |centres| {
+                    let cells = InsideCells::new(&world.mesh, &config, |centres| {
                         scene.contains_batch(centres, None)
-                    })
-                    .map(Arc::new)
+                    })?;
+                    Some(Arc::new(SceneInsideCells { cells, by_segments }))
                 });
             }
             (state.scene.clone(), state.inside_cells.clone())

@@ -136,14 +136,34 @@ pub struct MaskedPoints<'a> {
     pub masks: MaskSlice<'a>,
 }
 
-/// Whether `point` lies inside the scene among the instances `mask` sees: from `cells` (made
-/// for this scene, used only without a mask) where its cell knows, else
-/// `Scene::contains_with_mask`.
+/// A scene's inside grid, and whether a point of a surface cell may be decided by a segment
+/// to a known point nearby (`InsideCells::known_point_near`), the parity of `Scene::count`'s
+/// crossings along it: in a scene of one live instance, where that parity is the change of
+/// inside (with several, a segment into overlapping solids would count both).
+pub struct SceneInsideCells {
+    pub cells: InsideCells,
+    pub by_segments: bool,
+}
+
+/// Whether `point` lies inside the scene among the instances `mask` sees: from `grid` (made
+/// for this scene, used only without a mask) where its cell knows, or by a segment to a known
+/// point where it may; else `Scene::contains_with_mask`, a ray to infinity.
 #[inline]
-fn inside(scene: &Scene, cells: Option<&InsideCells>, point: DVec3, mask: u32) -> bool {
-    cells
-        .and_then(|cells| cells.lookup(point))
-        .unwrap_or_else(|| scene.contains_with_mask(point, mask))
+fn inside(scene: &Scene, grid: Option<&SceneInsideCells>, point: DVec3, mask: u32) -> bool {
+    if let Some(grid) = grid {
+        if let Some(answer) = grid.cells.lookup(point) {
+            return answer;
+        }
+        if let Some((known, known_inside)) = grid
+            .by_segments
+            .then(|| grid.cells.known_point_near(point))
+            .flatten()
+        {
+            let segment = SceneRay::from_f64(point, known - point).with_interval(0.0, 1.0);
+            return known_inside != (scene.count(&segment) % 2 == 1);
+        }
+    }
+    scene.contains_with_mask(point, mask)
 }
 
 /// Whether each point lies inside the scene (`Scene::contains_with_mask`), among the
@@ -151,7 +171,7 @@ fn inside(scene: &Scene, cells: Option<&InsideCells>, point: DVec3, mask: u32) -
 pub fn scene_inside<'py>(
     py: Python<'py>,
     scene: &Scene,
-    cells: Option<&InsideCells>,
+    cells: Option<&SceneInsideCells>,
     query: MaskedPoints<'_>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<bool>>> {
@@ -232,7 +252,7 @@ pub fn scene_closest_points<'py>(
 pub fn scene_signed_distances<'py>(
     py: Python<'py>,
     scene: &Scene,
-    cells: Option<&InsideCells>,
+    cells: Option<&SceneInsideCells>,
     query: MaskedPoints<'_>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {

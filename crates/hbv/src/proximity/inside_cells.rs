@@ -47,6 +47,9 @@ impl Default for InsideCellsConfig {
     }
 }
 
+/// How many rings of cells around a surface cell [`InsideCells::known_point_near`] searches.
+const NEAR_RINGS: i64 = 3;
+
 /// What a cell knows about its points.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Cell {
@@ -62,6 +65,8 @@ enum Cell {
 pub struct InsideCells {
     /// The grid's lower corner.
     low: DVec3,
+    /// The size of a cell (the same on every axis).
+    cell: f64,
     /// 1 / the size of a cell, per axis.
     inverse_cell: DVec3,
     /// Cells per axis.
@@ -96,6 +101,7 @@ impl InsideCells {
         let dims = [0, 1, 2].map(|a| ((size[a] / cell).ceil() as usize).max(1));
         let mut grid = Self {
             low,
+            cell,
             inverse_cell: DVec3::splat(1.0 / cell),
             dims,
             cells: vec![Cell::Outside; dims[0] * dims[1] * dims[2]],
@@ -178,6 +184,52 @@ impl InsideCells {
         }
     }
 
+    /// A point near `p` whose side is known: the centre of the free cell nearest to `p` in the
+    /// nearest ring of cells around `p`'s (up to [`NEAR_RINGS`] rings out) that has one, and
+    /// whether it is inside. A segment from `p` to it crosses the surface an odd number of
+    /// times exactly when `p` is on the other side (Jordan, as a ray to infinity): a short
+    /// segment, where the ray would cross the whole mesh. `None` outside the grid, or when no
+    /// free cell is that near.
+    pub fn known_point_near(&self, p: DVec3) -> Option<(DVec3, bool)> {
+        let at = (p - self.low) * self.inverse_cell;
+        if !(0..3).all(|a| at[a] >= 0.0 && at[a] < self.dims[a] as f64) {
+            return None;
+        }
+        let home = [0, 1, 2].map(|a| at[a] as i64);
+        for ring in 1..=NEAR_RINGS {
+            let mut best: Option<(f64, DVec3, bool)> = None;
+            for dz in -ring..=ring {
+                for dy in -ring..=ring {
+                    for dx in -ring..=ring {
+                        if dx.abs().max(dy.abs()).max(dz.abs()) != ring {
+                            continue;
+                        }
+                        let index = [home[0] + dx, home[1] + dy, home[2] + dz];
+                        if !(0..3).all(|a| (0..self.dims[a] as i64).contains(&index[a])) {
+                            continue;
+                        }
+                        let [x, y, z] = index.map(|i| i as usize);
+                        let inside = match self.cells[(z * self.dims[1] + y) * self.dims[0] + x] {
+                            Cell::Surface => continue,
+                            Cell::Inside => true,
+                            Cell::Outside => false,
+                        };
+                        let corner = DVec3::new(x as f64, y as f64, z as f64);
+                        let centre = self.low + (corner + 0.5) * self.cell;
+                        let distance = centre.distance_squared(p);
+                        if best.is_none_or(|(d, _, _)| distance < d) {
+                            best = Some((distance, centre, inside));
+                        }
+                    }
+                }
+            }
+            if let Some((_, centre, inside)) = best {
+                return Some((centre, inside));
+            }
+        }
+        None
+    }
+
     /// Cells per axis.
     pub fn dims(&self) -> [usize; 3] {
         self.dims
@@ -195,8 +247,10 @@ mod tests {
     use glam::Vec3;
 
     use super::*;
+    use crate::all_hits::AllHits;
     use crate::bvh::build::{BinnedSahBuilder, BinnedSahConfig, Builder};
     use crate::bvh::layout::Wide8Layout;
+    use crate::geometry::Ray;
     use crate::mesh::procedural::torus;
     use crate::proximity::contains;
 
@@ -232,6 +286,22 @@ mod tests {
             known > 10_000 && inside > 500,
             "{known} known, {inside} inside"
         );
+        // Points in surface cells: the parity of a segment's crossings to a known point.
+        let mut segments = 0;
+        for _ in 0..20_000 {
+            let p = DVec3::new(next(), next(), next() * 0.4);
+            if cells.lookup(p).is_some() {
+                continue;
+            }
+            let (known, known_inside) = cells.known_point_near(p).expect("a free cell near");
+            assert_eq!(cells.lookup(known), Some(known_inside));
+            let from = p.as_vec3();
+            let segment = Ray::new(from, known.as_vec3() - from).with_interval(0.0, 1.0);
+            let odd = layout.count_hits(&segment) % 2 == 1;
+            assert_eq!(known_inside != odd, exact(p), "at {p}");
+            segments += 1;
+        }
+        assert!(segments > 1000, "{segments} points in surface cells");
         assert_eq!(cells.lookup(DVec3::splat(f64::NAN)), Some(false));
         assert_eq!(cells.lookup(DVec3::new(0.0, 0.0, 5.0)), Some(false));
         // The torus's hole is outside; the middle of its tube inside.
