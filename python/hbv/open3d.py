@@ -20,6 +20,8 @@ one geometry, and one ray's exact parity with several.
 
 One geometry is answered by an :class:`hbv.BVH`, several by an :class:`hbv.Scene` whose
 instance ids are the geometry ids; both are made on the first query after a geometry is added.
+Inside tests of one closed geometry go through a Scene of its BVH, whose inside grid answers
+repeated calls' points away from the surface without a ray (``hbv.Scene.contains``).
 """
 
 from __future__ import annotations
