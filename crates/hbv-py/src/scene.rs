@@ -224,6 +224,28 @@ impl PyScene {
         PyErr::warn(py, &py.get_type::<PyRuntimeWarning>(), &message, 1)
     }
 
+    /// Reads the points and masks of an inside test (`contains`, `signed_distance`), warns
+    /// when a mesh is open, and has `answer` answer them on the scene as it is, with its
+    /// inside grid where one serves.
+    fn inside_query<'py, T>(
+        &self,
+        py: Python<'py>,
+        points: &Bound<'py, PyAny>,
+        mask: Option<&Bound<'py, PyAny>>,
+        answer: impl FnOnce(&Scene, Option<&SceneInsideCells>, MaskedPoints<'_>) -> PyResult<T>,
+    ) -> PyResult<T> {
+        let (points, rows) = float_array("points", points, Some(3), None)?;
+        let masks = row_masks(mask, rows, "points")?;
+        self.warn_if_open(py)?;
+        let (scene, cells) = self.current_with_inside_cells(py, rows, mask.is_some());
+        let query = MaskedPoints {
+            points: points.values(),
+            rows,
+            masks: masks.as_slice(),
+        };
+        answer(&scene, cells.as_deref(), query)
+    }
+
     /// The id `instance`, checked to be an integer the scene handed out.
     fn instance(&self, instance: &Bound<'_, PyAny>) -> PyResult<InstanceId> {
         let issued = self.lock().scene.instance_count();
@@ -468,16 +490,9 @@ impl PyScene {
         mask: Option<&Bound<'py, PyAny>>,
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        let (points, rows) = float_array("points", points, Some(3), None)?;
-        let masks = row_masks(mask, rows, "points")?;
-        self.warn_if_open(py)?;
-        let (scene, cells) = self.current_with_inside_cells(py, rows, mask.is_some());
-        let query = MaskedPoints {
-            points: points.values(),
-            rows,
-            masks: masks.as_slice(),
-        };
-        scene_inside(py, &scene, cells.as_deref(), query, threads)
+        self.inside_query(py, points, mask, |scene, cells, query| {
+            scene_inside(py, scene, cells, query, threads)
+        })
     }
 
     /// The nearest surface point among the instances each point's mask sees: a dict of arrays
@@ -518,15 +533,8 @@ impl PyScene {
         mask: Option<&Bound<'py, PyAny>>,
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let (points, rows) = float_array("points", points, Some(3), None)?;
-        let masks = row_masks(mask, rows, "points")?;
-        self.warn_if_open(py)?;
-        let (scene, cells) = self.current_with_inside_cells(py, rows, mask.is_some());
-        let query = MaskedPoints {
-            points: points.values(),
-            rows,
-            masks: masks.as_slice(),
-        };
-        scene_signed_distances(py, &scene, cells.as_deref(), query, threads)
+        self.inside_query(py, points, mask, |scene, cells, query| {
+            scene_signed_distances(py, scene, cells, query, threads)
+        })
     }
 }

@@ -166,6 +166,31 @@ fn inside(scene: &Scene, grid: Option<&SceneInsideCells>, point: DVec3, mask: u3
     scene.contains_with_mask(point, mask)
 }
 
+/// `answer(point, mask)` for each point of `query`, on the threads `threads` asks for, with
+/// the GIL released.
+fn answer_each<T: Copy + Default + Send>(
+    py: Python<'_>,
+    query: MaskedPoints<'_>,
+    threads: Option<ThreadCount>,
+    answer: impl Fn(DVec3, u32) -> T + Sync,
+) -> PyResult<Vec<T>> {
+    let MaskedPoints {
+        points,
+        rows,
+        masks,
+    } = query;
+    let mut answers = vec![T::default(); rows];
+    py.detach(|| {
+        fill_rows(threads, &mut answers[..], |first, out| {
+            for (k, answer_k) in out.iter_mut().enumerate() {
+                let row = first + k;
+                *answer_k = answer(points.row3_f64(row), masks.at(row));
+            }
+        })
+    })?;
+    Ok(answers)
+}
+
 /// Whether each point lies inside the scene (`Scene::contains_with_mask`), among the
 /// instances its mask sees; `cells` answering the points whose cell knows.
 pub fn scene_inside<'py>(
@@ -175,21 +200,10 @@ pub fn scene_inside<'py>(
     query: MaskedPoints<'_>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-    let MaskedPoints {
-        points,
-        rows,
-        masks,
-    } = query;
-    let mut inside = vec![false; rows];
-    py.detach(|| {
-        fill_rows(threads, &mut inside[..], |first, out| {
-            for (k, inside) in out.iter_mut().enumerate() {
-                let row = first + k;
-                *inside = self::inside(scene, cells, points.row3_f64(row), masks.at(row));
-            }
-        })
+    let answers = answer_each(py, query, threads, |point, mask| {
+        inside(scene, cells, point, mask)
     })?;
-    Ok(inside.into_pyarray(py))
+    Ok(answers.into_pyarray(py))
 }
 
 /// The nearest surface point of the instances each point's mask sees: a dict of `point` (N, 3)
@@ -256,27 +270,16 @@ pub fn scene_signed_distances<'py>(
     query: MaskedPoints<'_>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-    let MaskedPoints {
-        points,
-        rows,
-        masks,
-    } = query;
-    let mut signed = vec![0.0f64; rows];
-    py.detach(|| {
-        let search = scene.nearest_points();
-        fill_rows(threads, &mut signed[..], |first, out| {
-            for (k, signed) in out.iter_mut().enumerate() {
-                let (point, mask) = (points.row3_f64(first + k), masks.at(first + k));
-                let distance = search
-                    .closest_point_with_mask(point, mask)
-                    .map_or(f64::INFINITY, |c| c.distance);
-                *signed = if inside(scene, cells, point, mask) {
-                    -distance
-                } else {
-                    distance
-                };
-            }
-        })
+    let search = scene.nearest_points();
+    let signed = answer_each(py, query, threads, |point, mask| {
+        let distance = search
+            .closest_point_with_mask(point, mask)
+            .map_or(f64::INFINITY, |c| c.distance);
+        if inside(scene, cells, point, mask) {
+            -distance
+        } else {
+            distance
+        }
     })?;
     Ok(signed.into_pyarray(py))
 }

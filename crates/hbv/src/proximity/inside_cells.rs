@@ -217,8 +217,8 @@ impl InsideCells {
     }
 
     /// A point near `p` whose side is known: the centre of a free cell along an axis from `p`'s
-    /// (the fewest steps, up to [`NEAR_RINGS`]; the nearest centre of those), else of the free
-    /// cell nearest to `p` in the nearest ring of cells around `p`'s (up to [`NEAR_RINGS`]
+    /// (the fewest steps, up to `NEAR_RINGS` (3); the nearest centre of those), else of the free
+    /// cell nearest to `p` in the nearest ring of cells around `p`'s (up to `NEAR_RINGS` (3)
     /// rings out) that has one, and
     /// whether it is inside. A segment from `p` to it crosses the surface an odd number of
     /// times exactly when `p` is on the other side (Jordan, as a ray to infinity): a short
