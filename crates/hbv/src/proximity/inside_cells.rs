@@ -24,7 +24,7 @@ use crate::mesh::TriangleMesh;
 /// The knobs of [`InsideCells`].
 #[derive(Clone, Copy, Debug)]
 pub struct InsideCellsConfig {
-    /// Cells along the box's longest axis per cube root of the triangle count (default 4).
+    /// Cells along the box's longest axis per cube root of the triangle count (default 16).
     pub cells_per_cube_root: f64,
     /// Fewest cells along the longest axis (default 16).
     pub min_cells: usize,
@@ -39,7 +39,7 @@ pub struct InsideCellsConfig {
 impl Default for InsideCellsConfig {
     fn default() -> Self {
         Self {
-            cells_per_cube_root: 8.0,
+            cells_per_cube_root: 16.0,
             min_cells: 16,
             max_cells: 192,
             relative_margin: 1e-5,
