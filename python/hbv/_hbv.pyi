@@ -70,6 +70,21 @@ class Mesh:
 def load(path: Union[str, PathLike[str]]) -> Mesh:
     """Reads .obj, .ply, .gltf or .glb; OSError / ValueError naming file, place and reason."""
 
+def plane_locations(
+    vertices: npt.NDArray[np.float64],
+    faces: npt.NDArray[np.int64],
+    prim: npt.NDArray[np.int64],
+    index_ray: npt.NDArray[np.int64],
+    origins: _Floats,
+    directions: _Floats,
+    t: npt.NDArray[np.float32],
+    threads: Optional[int] = None,
+) -> npt.NDArray[np.float64]:
+    """Where ray ``index_ray[k]`` meets the plane of triangle ``prim[k]``: (H, 3) float64,
+    ``o + s·d`` with ``s = n·(p0 - o) / n·d`` from the float64 vertices (``o + t[k]·d`` where the
+    plane gives no finite point). vertices (V, 3) float64 and faces (F, 3) int64, C-ordered;
+    indices out of range raise ValueError naming the argument and the row."""
+
 class BVH:
     """A bounding volume hierarchy over a mesh, answering ray and point queries.
 
