@@ -22,14 +22,9 @@ from typing import Any, Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
-from ._hbv import BVH, Mesh, Scene, plane_locations
+from ._hbv import BVH, Mesh, Scene, trimesh_hits
 
 __all__ = ["RayMeshIntersector", "install", "uninstall", "scene", "scene_nodes"]
-
-#: Hits of one ray whose float64 locations lie within this fraction of the mesh's size of each
-#: other are one hit (two coincident faces), as trimesh reports a location once.
-_SAME_LOCATION = 1e-9
-
 
 class RayMeshIntersector:
     """Ray queries on a trimesh mesh with the meaning of trimesh's Embree intersector.
@@ -92,8 +87,10 @@ class RayMeshIntersector:
         each ray, at most ``max_hits`` per ray (the nearest; None: all), in trimesh's Embree
         order: every ray's first hit (by ray), then every ray's second hit, and so on; otherwise
         each ray's closest hit, by ray. A ray crossing the surface through an edge or vertex
-        hits one of the triangles there (decided exactly); with ``return_locations=True``
-        coincident faces hit at one place are reported once, as in trimesh.
+        hits one of the triangles there (decided exactly), and coincident faces hit at one place
+        are one hit (within 1e-6 of the mesh's size plus the distance), as trimesh reports a
+        place once. Locations are where the ray meets the hit triangle's plane, in float64
+        from the mesh's float64 vertices.
         """
         traced = self._current()
         origins, directions = _rays(ray_origins, ray_directions)
@@ -106,25 +103,12 @@ class RayMeshIntersector:
             hits = traced.bvh.intersect(traced_origins, directions)
             index_ray = np.flatnonzero(hits["hit"])
             t, index_tri = hits["t"][index_ray], hits["prim"][index_ray]
-        locations = None
-        if return_locations:
-            locations = plane_locations(
-                traced.vertices, traced.faces, index_tri, index_ray, origins, directions, t
-            )
-            if multiple_hits:
-                keep = _apart_from_previous(index_ray, locations, _SAME_LOCATION * traced.size)
-                if not keep.all():
-                    index_ray, index_tri, locations = (
-                        index_ray[keep],
-                        index_tri[keep],
-                        locations[keep],
-                    )
-        if multiple_hits:
-            order = _depth_major(index_ray, max_hits)
-            if order is not None:
-                index_ray, index_tri = index_ray[order], index_tri[order]
-                if locations is not None:
-                    locations = locations[order]
+            if not return_locations:
+                return index_tri, index_ray
+        planes = (traced.vertices, traced.faces) if return_locations else (None, None)
+        index_tri, index_ray, locations = trimesh_hits(
+            index_ray, t, index_tri, origins, directions, traced.size, max_hits, *planes
+        )
         if locations is None:
             return index_tri, index_ray
         return index_tri, index_ray, locations
@@ -312,7 +296,8 @@ def _mesh_key(mesh: Any) -> Any:
 
 
 def _rays(origins: Any, directions: Any) -> Tuple[np.ndarray, np.ndarray]:
-    """Rays as float64 (n, 3) arrays (trimesh accepts a single ray as (3,))."""
+    """Rays as (n, 3) arrays, float32 or float64 as given (trimesh accepts a single ray as
+    (3,))."""
     o = _rows3("ray_origins", origins)
     d = _rows3("ray_directions", directions)
     if len(o) != len(d):
@@ -327,9 +312,11 @@ def _points(points: Any) -> np.ndarray:
 
 
 def _rows3(name: str, values: Any) -> np.ndarray:
-    """``values`` as a float64 (n, 3) array, (3,) read as one row; a ValueError naming the
-    argument for any other shape."""
-    a = np.asarray(values, dtype=np.float64)
+    """``values`` as a float32 or float64 (n, 3) array (others converted to float64), (3,) read
+    as one row; a ValueError naming the argument for any other shape."""
+    a = np.asarray(values)
+    if a.dtype != np.float32 and a.dtype != np.float64:
+        a = a.astype(np.float64)
     if a.shape == (3,):
         return a.reshape(1, 3)
     if a.ndim != 2 or a.shape[1] != 3:
@@ -340,43 +327,3 @@ def _rows3(name: str, values: Any) -> np.ndarray:
 def _no_hits() -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     empty = np.zeros(0, dtype=np.int64)
     return empty, np.zeros(0, dtype=np.float32), empty.copy()
-
-
-def _rank_within_ray(index_ray: np.ndarray) -> np.ndarray:
-    """0 for each ray's first hit, 1 for its second, ... (hits grouped by ray)."""
-    if len(index_ray) == 0:
-        return np.zeros(0, dtype=np.int64)
-    starts = np.flatnonzero(np.r_[True, index_ray[1:] != index_ray[:-1]])
-    first_of_group = np.repeat(starts, np.diff(np.r_[starts, len(index_ray)]))
-    return np.arange(len(index_ray)) - first_of_group
-
-
-def _depth_major(index_ray: np.ndarray, max_hits: Optional[int]) -> Optional[np.ndarray]:
-    """The order of trimesh's Embree intersector for hits grouped by ray (nearest first): every
-    ray's first hit, then every ray's second, ..., keeping each ray's first ``max_hits``; None
-    when the hits are already in that order (at most one per ray)."""
-    if len(index_ray) < 2 or not (index_ray[1:] == index_ray[:-1]).any():
-        return None
-    rank = _rank_within_ray(index_ray)
-    # NumPy's stable sort is a radix sort on 8- and 16-bit integers.
-    deepest = int(rank.max())
-    if deepest < 1 << 16:
-        rank = rank.astype(np.uint8 if deepest < 1 << 8 else np.uint16)
-    if max_hits is not None:
-        kept = np.flatnonzero(rank < max_hits)
-        return kept[np.argsort(rank[kept], kind="stable")]
-    return np.argsort(rank, kind="stable")
-
-
-def _apart_from_previous(index_ray: np.ndarray, locations: np.ndarray, tolerance: float) -> np.ndarray:
-    """False for a hit that repeats the previous hit of the same ray at the same place (within
-    ``tolerance``): coincident faces, hit at one point."""
-    keep = np.ones(len(index_ray), dtype=bool)
-    if len(index_ray) < 2:
-        return keep
-    same_ray = index_ray[1:] == index_ray[:-1]
-    if not same_ray.any():
-        return keep
-    gap = np.abs(locations[1:] - locations[:-1]).max(axis=1)
-    keep[1:] = ~(same_ray & (gap <= tolerance))
-    return keep

@@ -408,23 +408,44 @@ def test_empty_mesh():
     ]
 
 
-def test_plane_locations_checks_its_arguments():
+def test_trimesh_hits_checks_its_arguments():
     v = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], dtype=np.float64)
     f = np.array([[0, 1, 2]], dtype=np.int64)
     o, d = np.array([[0.2, 0.2, 1.0]]), np.array([[0.0, 0.0, -1.0]])
-    one, t = np.zeros(1, np.int64), np.ones(1, np.float32)
-    np.testing.assert_array_equal(hbv._hbv.plane_locations(v, f, one, one, o, d, t), [[0.2, 0.2, 0]])
+    zero, t = np.zeros(1, np.int64), np.ones(1, np.float32)
+
+    def call(index_ray=zero, t=t, prim=zero, origins=o, directions=d, vertices=v, faces=f):
+        return hbv._hbv.trimesh_hits(index_ray, t, prim, origins, directions, 1.0, None,
+                                     vertices, faces)
+
+    tri, ray, loc = call()
+    assert tri.tolist() == [0] and ray.tolist() == [0]
+    np.testing.assert_array_equal(loc, [[0.2, 0.2, 0.0]])
+    assert hbv._hbv.trimesh_hits(zero, t, zero, o, d, 1.0)[2] is None
     with pytest.raises(ValueError, match="prim: row 0"):
-        hbv._hbv.plane_locations(v, f, one + 1, one, o, d, t)
+        call(prim=zero + 1)
     with pytest.raises(ValueError, match="index_ray: row 0"):
-        hbv._hbv.plane_locations(v, f, one, one - 1, o, d, t)
+        call(index_ray=zero - 1)
     with pytest.raises(ValueError, match="faces: row 0"):
-        hbv._hbv.plane_locations(v, f + 1, one, one, o, d, t)
+        call(faces=f + 1)
     with pytest.raises(TypeError, match="vertices"):
-        hbv._hbv.plane_locations(v.astype(np.float32), f, one, one, o, d, t)
+        call(vertices=v.astype(np.float32))
     with pytest.raises(ValueError, match="t: expected 1 rows"):
-        hbv._hbv.plane_locations(v, f, one, one, o, d, np.ones(2, np.float32))
+        call(t=np.ones(2, np.float32))
+    with pytest.raises(ValueError, match="directions"):
+        call(directions=np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="give both"):
+        hbv._hbv.trimesh_hits(zero, t, zero, o, d, 1.0, None, v)
     # a ray in the triangle's plane: no finite plane point, so o + t·d
-    inplane = hbv._hbv.plane_locations(v, f, one, one, np.array([[-1, 0.2, 0.0]]),
-                                       np.array([[1.0, 0, 0]]), np.full(1, 1.2, np.float32))
+    _, _, inplane = call(origins=np.array([[-1, 0.2, 0.0]]), directions=np.array([[1.0, 0, 0]]),
+                         t=np.full(1, 1.2, np.float32))
     np.testing.assert_allclose(inplane, [[0.2, 0.2, 0.0]], atol=1e-7)
+    # depth-major order, max_hits, a repeat of a place left out
+    index_ray = np.array([0, 0, 0, 1, 2, 2], np.int64)
+    ts = np.array([1.0, 1.0, 2.0, 5.0, 1.0, 3.0], np.float32)
+    prims = np.arange(6, dtype=np.int64)
+    rays3 = np.zeros((3, 3)), np.tile([0.0, 0.0, 1.0], (3, 1))
+    tri, ray, _ = hbv._hbv.trimesh_hits(index_ray, ts, prims, *rays3, 1.0)
+    assert ray.tolist() == [0, 1, 2, 0, 2] and tri.tolist() == [0, 3, 4, 2, 5]
+    tri, ray, _ = hbv._hbv.trimesh_hits(index_ray, ts, prims, *rays3, 1.0, 1)
+    assert ray.tolist() == [0, 1, 2] and tri.tolist() == [0, 3, 4]
