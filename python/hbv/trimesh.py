@@ -26,6 +26,7 @@ from ._hbv import BVH, Mesh, Scene, trimesh_hits
 
 __all__ = ["RayMeshIntersector", "install", "uninstall", "scene", "scene_nodes"]
 
+
 class RayMeshIntersector:
     """Ray queries on a trimesh mesh with the meaning of trimesh's Embree intersector.
 
@@ -95,6 +96,7 @@ class RayMeshIntersector:
         traced = self._current()
         origins, directions = _rays(ray_origins, ray_directions)
         traced_origins = traced.placed(origins)
+        max_hits = None if max_hits is None else int(max_hits)
         if max_hits is not None and max_hits < 1:
             index_ray, t, index_tri = _no_hits()
         elif multiple_hits:

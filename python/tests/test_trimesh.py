@@ -75,9 +75,10 @@ def assert_locations_match(ours, theirs, scale, tolerance=1e-9):
     """Same rays, same number of hits per ray, and each location within tolerance · scale."""
     loc_a, ray_a, _ = ours
     loc_b, ray_b, _ = theirs
-    np.testing.assert_array_equal(np.bincount(ray_a, minlength=1 + max(ray_a.max(initial=0),
-                                  ray_b.max(initial=0))), np.bincount(ray_b, minlength=1 + max(
-                                      ray_a.max(initial=0), ray_b.max(initial=0))))
+    rays = 1 + max(ray_a.max(initial=0), ray_b.max(initial=0))
+    np.testing.assert_array_equal(
+        np.bincount(ray_a, minlength=rays), np.bincount(ray_b, minlength=rays)
+    )
     order_a = np.lexsort((*loc_a.T[::-1], ray_a))
     order_b = np.lexsort((*loc_b.T[::-1], ray_b))
     gap = np.abs(loc_a[order_a] - loc_b[order_b]).max(initial=0.0)
@@ -271,11 +272,14 @@ def test_follows_mesh_changes():
     assert top() == 0.0
     mesh.vertices[:, 2] += 1.0  # in place: trimesh's tracked array notes the change
     assert top() == 1.0
+    top_vertices = mesh.vertices[:, 2] > 0
+    mesh.vertices[top_vertices, 2] = 3.0  # an item assignment
+    assert top() == 3.0
     vertices = mesh.vertices.copy()
     vertices[:, :2] += 50.0  # moved away sideways: the ray misses
     mesh.vertices = vertices
     assert ray.intersects_first(o, d).tolist() == [-1]
-    assert not ray.contains_points([[50.0, 50.0, 0.0]]).any() is False
+    assert ray.contains_points([[50.0, 50.0, 0.5], [0.0, 0.0, 0.5]]).tolist() == [True, False]
     assert ray.intersects_id(o, d)[0].size == 0
 
 
