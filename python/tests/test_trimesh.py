@@ -164,6 +164,33 @@ def test_depth_major_order_as_embree():
     assert len(ours.intersects_id(o, d, False, 100, True)) == 3
 
 
+def test_depth_major_order_on_many_rays(meshes):
+    """Enough hits to be ordered on several threads: the order is NumPy's stable sort of
+    intersect_all's hits by their rank within the ray."""
+    o, d = rays(n=6000, seed=12)
+    ours = hbv.trimesh.RayMeshIntersector(meshes[1])
+    index_ray, t, prim = ours.bvh.intersect_all(o, d)
+    assert len(index_ray) > 3 * 2048
+    starts = np.searchsorted(index_ray, index_ray, side="left")
+    rank = np.arange(len(index_ray)) - starts
+    for max_hits in (None, 1, 2, 3):
+        kept = np.ones(len(rank), bool) if max_hits is None else rank < max_hits
+        order = np.flatnonzero(kept)[np.argsort(rank[kept], kind="stable")]
+        traced = ours._current()
+        planes = (traced.vertices, traced.faces)
+        answers = [ours.intersects_id(o, d, max_hits=max_hits)]
+        answers += [
+            hbv._hbv.trimesh_hits(index_ray, t, prim, o, d, traced.size, max_hits, *planes,
+                                  threads=threads)
+            for threads in (1, 2, 3)
+        ]
+        for tri_k, ray_k, *_ in answers:
+            np.testing.assert_array_equal(ray_k, index_ray[order])
+            np.testing.assert_array_equal(tri_k, prim[order])
+        for _, _, locations in answers[2:]:
+            np.testing.assert_array_equal(locations, answers[1][2])
+
+
 def test_single_hit(meshes):
     o, d = rays(seed=9)
     mesh = meshes[1]

@@ -3,13 +3,14 @@
 //! mesh's float64 vertices (`hbv.trimesh`'s `intersects_id` and `intersects_location`).
 //!
 //! Done here rather than in NumPy because on a million rays the ordering and the locations took
-//! 14 % and 67 % of the traversal's own time in NumPy (gathers and a sort); here they are two
-//! passes over the hits, the second on all cores.
+//! 14 % and 67 % of the traversal's own time in NumPy (gathers and a sort); here they are a
+//! counting sort and a pass over the hits, each on all cores.
 
+use std::mem::MaybeUninit;
+use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use hbv::glam::DVec3;
-use numpy::ndarray::ArrayView2;
 use numpy::{
     IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArray,
     PyUntypedArrayMethods,
@@ -19,7 +20,9 @@ use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
 use crate::arrays::{as_ndarray, float_array, shape_text, FloatSlice};
-use crate::thread_pool::{fill_rows, ThreadCount};
+use crate::output_column::OutputColumn;
+use crate::thread_pool::{fill_rows, run_on_threads, ThreadCount, SERIAL_ROWS};
+use rayon::prelude::*;
 
 /// Hits of one ray closer than this fraction of (their distance along the ray + the mesh's
 /// size) are one hit: coincident faces hit at one place, reported once as trimesh reports a
@@ -61,12 +64,6 @@ pub fn trimesh_hits<'py>(
 ) -> PyResult<Bound<'py, PyTuple>> {
     let index_ray = c_array1::<i64>("index_ray", index_ray, "int64")?;
     let hits = index_ray.len();
-    if hits >= u32::MAX as usize {
-        return Err(PyValueError::new_err(format!(
-            "index_ray: {hits} hits, more than the {} this function orders",
-            u32::MAX - 1
-        )));
-    }
     let t = c_array1::<f32>("t", t, "float32")?;
     let prim = c_array1::<i64>("prim", prim, "int64")?;
     for (name, len) in [("t", t.len()), ("prim", prim.len())] {
@@ -90,14 +87,17 @@ pub fn trimesh_hits<'py>(
             ))
         }
     };
-    let planes = planes.as_ref().map(|(v, f)| PlaneMesh {
-        vertices: v.as_array(),
-        faces: f.as_array(),
-    });
+    let planes = match &planes {
+        Some((v, f)) => Some(PlaneMesh {
+            vertices: v.as_slice()?,
+            faces: f.as_slice()?,
+        }),
+        None => None,
+    };
     let (index_ray, t, prim) = (index_ray.as_slice()?, t.as_slice()?, prim.as_slice()?);
     check_indices("index_ray", index_ray, rays)?;
     if let Some(planes) = &planes {
-        check_indices("prim", prim, planes.faces.nrows())?;
+        check_indices("prim", prim, planes.faces.len() / 3)?;
     }
     let list = HitList {
         index_ray,
@@ -106,10 +106,11 @@ pub fn trimesh_hits<'py>(
         origins: origins.values(),
         directions: directions.values(),
     };
-    let (tri, ray, locations) = py.detach(|| {
-        let source = list.depth_major(size, max_hits.unwrap_or(usize::MAX));
-        list.gather(&source, planes.as_ref(), threads)
-    })?;
+    let rule = RankRule {
+        size,
+        max_hits: max_hits.unwrap_or(usize::MAX),
+    };
+    let (tri, ray, locations) = py.detach(|| list.arrange(&rule, planes.as_ref(), threads))?;
     let locations = match locations {
         Some(l) => {
             let rows = l.len();
@@ -142,120 +143,157 @@ struct HitList<'a> {
 /// Output columns: triangle, ray, and (when asked) location of each hit.
 type Columns = (Vec<i64>, Vec<i64>, Option<Vec<[f64; 3]>>);
 
+/// Which hits of a ray are kept, and their ranks: nearest first, a hit at the place of the
+/// last one kept left out (see [`SAME_PLACE`]), ranks from `max_hits` on left out.
+struct RankRule {
+    size: f64,
+    max_hits: usize,
+}
+
 impl HitList<'_> {
-    /// The hits to keep, in trimesh's Embree order: the source row of each output row. A
-    /// counting sort by rank within the ray: one pass ranks the hits (leaving out repeats of a
-    /// place and ranks from `max_hits` on) and counts each rank, a second places each hit after
-    /// the hits of lower rank and the earlier hits of its rank.
-    fn depth_major(&self, size: f64, max_hits: usize) -> Vec<u32> {
-        const LEFT_OUT: u32 = u32::MAX;
+    /// Calls `keep(k, rank)` for each hit `k` of `rows` kept by `rule`, in row order; `rows`
+    /// starts at a ray's first hit.
+    #[inline]
+    fn for_each_kept(
+        &self,
+        rule: &RankRule,
+        rows: Range<usize>,
+        mut keep: impl FnMut(usize, usize),
+    ) {
         let (index_ray, t) = (self.index_ray, self.t);
-        let mut rank = vec![LEFT_OUT; index_ray.len()];
-        let mut per_rank: Vec<u32> = Vec::new();
-        let (mut next_rank, mut kept_t, mut speed) = (0usize, 0.0f64, f64::NAN);
-        for k in 0..index_ray.len() {
+        let same_place = SAME_PLACE * rule.size;
+        let (mut next_rank, mut kept_t) = (0usize, 0.0f64);
+        for k in rows.clone() {
             let t_k = f64::from(t[k]);
-            if k == 0 || index_ray[k] != index_ray[k - 1] {
-                (next_rank, speed) = (0, f64::NAN);
+            if k == rows.start || index_ray[k] != index_ray[k - 1] {
+                next_rank = 0;
             } else {
-                if speed.is_nan() {
-                    speed = self.directions.row3_f64(index_ray[k] as usize).length();
-                }
-                if (t_k - kept_t) * speed <= SAME_PLACE * (t_k * speed + size) {
+                // |t_k - kept_t|·|d| <= SAME_PLACE·(t_k·|d| + size), without a square root:
+                // (t_k - kept_t - SAME_PLACE·t_k)·|d| <= SAME_PLACE·size.
+                let gap = t_k - kept_t - SAME_PLACE * t_k;
+                if gap <= 0.0
+                    || gap * gap * squared_length(self.directions, index_ray[k] as usize)
+                        <= same_place * same_place
+                {
                     continue;
                 }
             }
-            if next_rank < max_hits {
-                rank[k] = next_rank as u32;
-                if per_rank.len() == next_rank {
-                    per_rank.push(0);
-                }
-                per_rank[next_rank] += 1;
+            if next_rank < rule.max_hits {
+                keep(k, next_rank);
                 next_rank += 1;
                 kept_t = t_k;
             }
         }
-        // per_rank[r] becomes the next output row of rank r.
-        let mut first = 0;
-        for count in &mut per_rank {
-            (*count, first) = (first, first + *count);
-        }
-        let mut source = vec![0u32; first as usize];
-        for (k, &r) in rank.iter().enumerate() {
-            if r != LEFT_OUT {
-                let row = &mut per_rank[r as usize];
-                source[*row as usize] = k as u32;
-                *row += 1;
-            }
-        }
-        source
     }
 
-    /// The output columns of the `source` rows, with locations on `planes`' triangles when
-    /// given; on all cores. A ValueError naming the first face hit whose vertex index is out of
-    /// range.
-    fn gather(
+    /// The kept hits in trimesh's Embree order (every ray's first hit by ray, then every ray's
+    /// second, ...), with their locations on `planes`' triangles when given.
+    ///
+    /// A counting sort by rank, on all cores: the hits are cut into runs of whole rays; each
+    /// run counts its kept hits of each rank; the output is cut into one piece per (rank, run),
+    /// rank-major, so that each run writes its hits of rank r, in order, into its own piece of
+    /// rank r's block; the locations are then computed row by row from the placed hits.
+    fn arrange(
         &self,
-        source: &[u32],
+        rule: &RankRule,
         planes: Option<&PlaneMesh<'_>>,
         threads: Option<ThreadCount>,
     ) -> PyResult<Columns> {
-        let mut tri = vec![0i64; source.len()];
-        let mut ray = vec![0i64; source.len()];
-        let mut locations = planes.map(|_| vec![[0.0f64; 3]; source.len()]);
-        let bad_face = AtomicUsize::new(usize::MAX);
-        let rows = (
-            tri.as_mut_slice(),
-            (ray.as_mut_slice(), locations.as_deref_mut()),
+        let workers = threads.map_or_else(rayon::current_num_threads, ThreadCount::get);
+        let runs = ray_runs(
+            self.index_ray,
+            if self.index_ray.len() <= SERIAL_ROWS {
+                1
+            } else {
+                workers
+            },
         );
-        fill_rows(threads, rows, |first, (tri, (ray, locations))| {
-            let source = &source[first..first + tri.len()];
-            for (j, &k) in source.iter().enumerate() {
-                tri[j] = self.prim[k as usize];
-                ray[j] = self.index_ray[k as usize];
-            }
-            if let (Some(locations), Some(planes)) = (locations, planes) {
-                for (row, &k) in locations.iter_mut().zip(source) {
-                    match self.location(k as usize, planes) {
-                        Some(p) => *row = p.to_array(),
-                        None => {
-                            bad_face.fetch_min(self.prim[k as usize] as usize, Ordering::Relaxed);
-                        }
+        // How many hits of each rank each run keeps.
+        let counts = on_each(runs.clone(), threads, |run| {
+            let mut per_rank = Vec::new();
+            self.for_each_kept(rule, run, |_, rank| {
+                if per_rank.len() == rank {
+                    per_rank.push(0);
+                }
+                per_rank[rank] += 1;
+            });
+            per_rank
+        })?;
+        let kept = counts.iter().flatten().sum::<usize>();
+        let mut tri = OutputColumn::<i64>::new(kept);
+        let mut ray = OutputColumn::<i64>::new(kept);
+        let mut t = OutputColumn::<f32>::new(if planes.is_some() { kept } else { 0 });
+        let pieces = RunPieces {
+            tri: pieces_of(tri.rows(), &counts),
+            ray: pieces_of(ray.rows(), &counts),
+            t: planes.map(|_| pieces_of(t.rows(), &counts)),
+        };
+        let work = pieces.into_runs().into_iter().zip(runs).collect();
+        on_each(work, threads, |((mut tri, mut ray, mut t), run)| {
+            let mut next = vec![0usize; tri.len()];
+            self.for_each_kept(rule, run, |k, rank| {
+                let row = next[rank];
+                tri[rank][row].write(self.prim[k]);
+                ray[rank][row].write(self.index_ray[k]);
+                if let Some(t) = t.as_mut() {
+                    t[rank][row].write(self.t[k]);
+                }
+                next[rank] += 1;
+            });
+        })?;
+        // SAFETY: the pieces cover every row of each column once (`pieces_of` cuts the column
+        // by the counts), and each run wrote all of its pieces' rows: the second walk of a run
+        // keeps the same hits with the same ranks as the walk that counted them.
+        let (tri, ray) = unsafe { (tri.into_filled(), ray.into_filled()) };
+        let Some(planes) = planes else {
+            return Ok((tri, ray, None));
+        };
+        // SAFETY: as above, with locations asked (so the t column has `kept` rows).
+        let t = unsafe { t.into_filled() };
+        let mut locations = vec![[0.0f64; 3]; kept];
+        let bad_face = AtomicUsize::new(usize::MAX);
+        fill_rows(threads, locations.as_mut_slice(), |first, rows| {
+            for (j, row) in (first..).zip(rows.iter_mut()) {
+                match self.location(ray[j] as usize, tri[j] as usize, t[j], planes) {
+                    Some(p) => *row = p.to_array(),
+                    None => {
+                        bad_face.fetch_min(tri[j] as usize, Ordering::Relaxed);
                     }
                 }
             }
         })?;
-        match (bad_face.into_inner(), planes) {
-            (usize::MAX, _) | (_, None) => Ok((tri, ray, locations)),
-            (face, Some(planes)) => Err(PyValueError::new_err(format!(
+        match bad_face.into_inner() {
+            usize::MAX => Ok((tri, ray, Some(locations))),
+            face => Err(PyValueError::new_err(format!(
                 "faces: row {face}: a vertex index outside 0..{}",
-                planes.vertices.nrows()
+                planes.vertices.len() / 3
             ))),
         }
     }
 
-    /// Where hit `k`'s ray meets its triangle's plane (see [`trimesh_hits`]); None when the
-    /// triangle has a vertex index out of range.
+    /// Where ray `ray` meets the plane of triangle `face` (see [`trimesh_hits`]), `o + t·d`
+    /// where the plane gives no finite point; None when the triangle has a vertex index out of
+    /// range.
     #[inline]
-    fn location(&self, k: usize, planes: &PlaneMesh<'_>) -> Option<DVec3> {
-        let ray = self.index_ray[k] as usize;
+    fn location(&self, ray: usize, face: usize, t: f32, planes: &PlaneMesh<'_>) -> Option<DVec3> {
         let o = self.origins.row3_f64(ray);
         let d = self.directions.row3_f64(ray);
-        let [p0, p1, p2] = planes.corners(self.prim[k] as usize)?;
+        let [p0, p1, p2] = planes.corners(face)?;
         let n = (p1 - p0).cross(p2 - p0);
         let on_plane = o + (n.dot(p0 - o) / n.dot(d)) * d;
         Some(if on_plane.is_finite() {
             on_plane
         } else {
-            o + f64::from(self.t[k]) * d
+            o + f64::from(t) * d
         })
     }
 }
 
-/// The float64 mesh whose triangles' planes locate the hits.
+/// The float64 mesh whose triangles' planes locate the hits: C-ordered (V, 3) vertices and
+/// (F, 3) faces, flat.
 struct PlaneMesh<'a> {
-    vertices: ArrayView2<'a, f64>,
-    faces: ArrayView2<'a, i64>,
+    vertices: &'a [f64],
+    faces: &'a [i64],
 }
 
 impl PlaneMesh<'_> {
@@ -263,16 +301,92 @@ impl PlaneMesh<'_> {
     #[inline]
     fn corners(&self, face: usize) -> Option<[DVec3; 3]> {
         let corner = |c: usize| {
-            let v = usize::try_from(self.faces[[face, c]]).ok()?;
-            (v < self.vertices.nrows()).then(|| {
-                DVec3::new(
-                    self.vertices[[v, 0]],
-                    self.vertices[[v, 1]],
-                    self.vertices[[v, 2]],
-                )
-            })
+            let v = usize::try_from(self.faces[3 * face + c]).ok()?;
+            self.vertices.get(3 * v..3 * v + 3).map(DVec3::from_slice)
         };
         Some([corner(0)?, corner(1)?, corner(2)?])
+    }
+}
+
+/// `|row|²` of row `i` of an (N, 3) array.
+#[inline(always)]
+fn squared_length(values: FloatSlice<'_>, i: usize) -> f64 {
+    let squared = |r: [f64; 3]| r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
+    match values {
+        FloatSlice::F32(v) => squared([v[3 * i], v[3 * i + 1], v[3 * i + 2]].map(f64::from)),
+        FloatSlice::F64(v) => squared([v[3 * i], v[3 * i + 1], v[3 * i + 2]]),
+    }
+}
+
+/// `work(item)` for each item, in parallel (on the calling thread alone for one item).
+fn on_each<I: Send, T: Send>(
+    items: Vec<I>,
+    threads: Option<ThreadCount>,
+    work: impl Fn(I) -> T + Sync + Send,
+) -> PyResult<Vec<T>> {
+    if items.len() == 1 {
+        return Ok(items.into_iter().map(work).collect());
+    }
+    run_on_threads(threads, || items.into_par_iter().map(work).collect())
+}
+
+/// `len` hits cut into at most `parts` runs of about equal length, each starting at a ray's
+/// first hit (hits are grouped by ray).
+fn ray_runs(index_ray: &[i64], parts: usize) -> Vec<Range<usize>> {
+    let len = index_ray.len();
+    let mut starts = vec![0];
+    for part in 1..parts.max(1) {
+        let mut cut = (len * part / parts).max(*starts.last().unwrap_or(&0));
+        while cut > 0 && cut < len && index_ray[cut] == index_ray[cut - 1] {
+            cut += 1;
+        }
+        starts.push(cut);
+    }
+    starts.push(len);
+    starts.windows(2).map(|w| w[0]..w[1]).collect()
+}
+
+/// An output column's rows, cut for the runs: `pieces[run][rank]` holds the run's hits of that
+/// rank, after the pieces of lower ranks and, within the rank, after earlier runs' pieces.
+fn pieces_of<'a, T>(
+    mut column: &'a mut [MaybeUninit<T>],
+    counts: &[Vec<usize>],
+) -> Vec<Vec<&'a mut [MaybeUninit<T>]>> {
+    let ranks = counts.iter().map(Vec::len).max().unwrap_or(0);
+    let mut pieces: Vec<Vec<_>> = counts.iter().map(|_| Vec::with_capacity(ranks)).collect();
+    for rank in 0..ranks {
+        for (run, count) in counts.iter().enumerate() {
+            let (piece, rest) =
+                std::mem::take(&mut column).split_at_mut(count.get(rank).map_or(0, |&c| c));
+            pieces[run].push(piece);
+            column = rest;
+        }
+    }
+    pieces
+}
+
+/// The pieces of each output column, by run.
+struct RunPieces<'a> {
+    tri: Vec<Vec<&'a mut [MaybeUninit<i64>]>>,
+    ray: Vec<Vec<&'a mut [MaybeUninit<i64>]>>,
+    t: Option<Vec<Vec<&'a mut [MaybeUninit<f32>]>>>,
+}
+
+/// One run's pieces of the triangle, ray and (when asked) t columns, by rank.
+type Pieces<'a> = (
+    Vec<&'a mut [MaybeUninit<i64>]>,
+    Vec<&'a mut [MaybeUninit<i64>]>,
+    Option<Vec<&'a mut [MaybeUninit<f32>]>>,
+);
+
+impl<'a> RunPieces<'a> {
+    fn into_runs(self) -> Vec<Pieces<'a>> {
+        let mut t = self.t.map(Vec::into_iter);
+        self.tri
+            .into_iter()
+            .zip(self.ray)
+            .map(|(tri, ray)| (tri, ray, t.as_mut().and_then(Iterator::next)))
+            .collect()
     }
 }
 
