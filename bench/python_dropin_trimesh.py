@@ -18,7 +18,11 @@ alternating order; the first round is discarded; a ratio is the median of the ro
 trimesh's Embree intersector (`trimesh.ray.ray_pyembree`, embreex) answers the same calls,
 timed over `--embree-repeat` rounds. Rays: `python_compare.py`'s `random` set.
 
-    ../py-bench-venv/bin/python bench/python_dropin_trimesh.py [MESH.ply ...] [--rays 1000000] [--repeat 7]
+`--clock cpu` times the process's CPU time instead of the wall clock: run with
+`RAYON_NUM_THREADS=1` (every call on one thread), it measures what each call costs in work,
+steadier than the wall clock on a machine that other jobs share.
+
+    ../py-bench-venv/bin/python bench/python_dropin_trimesh.py [MESH.ply ...] [--rays 1000000] [--repeat 7] [--clock wall|cpu]
 """
 
 import argparse
@@ -55,10 +59,14 @@ def pairs(drop, o, d):
     }
 
 
+CLOCK = {"wall": time.perf_counter, "cpu": time.process_time}
+clock = CLOCK["wall"]
+
+
 def seconds_of(call):
-    start = time.perf_counter()
+    start = clock()
     call()
-    return time.perf_counter() - start
+    return clock() - start
 
 
 def measure(path, args):
@@ -96,7 +104,10 @@ def main():
     p.add_argument("--repeat", type=int, default=7)
     p.add_argument("--embree-repeat", type=int, default=2)
     p.add_argument("--seed", type=int, default=7)
+    p.add_argument("--clock", choices=sorted(CLOCK), default="wall")
     args = p.parse_args()
+    global clock
+    clock = CLOCK[args.clock]
     meshes = args.meshes or sorted(SCENES.glob("*.ply"), key=lambda m: m.stat().st_size)
     if not meshes:
         print(f"no meshes given and none in {SCENES}: nothing to measure")
