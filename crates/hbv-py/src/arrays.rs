@@ -46,14 +46,22 @@ impl<'py, T: Element> ArrayValues<'py, T> {
             )?
         };
         let refused = |why: String| PyValueError::new_err(format!("{name}: {why}"));
+        let readable = readable.cast_into::<PyArrayDyn<T>>().map_err(|e| {
+            refused(format!(
+                "cannot be read as {}: {e}",
+                std::any::type_name::<T>()
+            ))
+        })?;
+        // The callers checked `array`'s shape; an ndarray subclass's own `view` or `astype`
+        // could answer another.
+        if readable.shape() != array.shape() {
+            return Err(refused(format!(
+                "its view or copy has shape {}, not its own {}",
+                shape_text(readable.shape()),
+                shape_text(array.shape())
+            )));
+        }
         let array = readable
-            .cast_into::<PyArrayDyn<T>>()
-            .map_err(|e| {
-                refused(format!(
-                    "cannot be read as {}: {e}",
-                    std::any::type_name::<T>()
-                ))
-            })?
             .try_readonly()
             .map_err(|e| refused(format!("cannot be read: {e}")))?;
         if let Err(e) = array.as_slice() {
