@@ -387,3 +387,41 @@ def test_arguments_that_change_while_they_are_read():
     reference = _scene()
     reference.set_transform(1, _shifted(0.5))
     _assert_same_bits(scene.intersect(x.o, x.d), reference.intersect(x.o, x.d), "intersect")
+
+
+def _byte_kinds(data):
+    """The bytes of a file as a worker may hold them."""
+    arr = np.frombuffer(data, np.uint8)
+    return {
+        "bytes": data,
+        "bytearray": bytearray(data),
+        "memoryview": memoryview(data),
+        "misaligned array": _misaligned(arr),
+        "read-only array": _read_only(arr),
+        "strided array": _strided(arr),
+        "reversed array": _reversed(arr),
+        "int8 array": arr.view(np.int8),
+    }
+
+
+@pytest.mark.parametrize("what", ["BVH", "Scene"])
+def test_pickled_bytes_load_from_any_byte_array(what, tmp_path):
+    """The `.hbv` bytes a pickle carries (and a Dask scatter may hand over as a buffer) load
+    from bytes, bytearrays, memoryviews and uint8 arrays of every kind, to the same answers;
+    anything else is refused naming `data`."""
+    x = _inputs(40)
+    if what == "BVH":
+        structure = BVH
+        BVH.save(tmp_path / "tree.hbv")  # a loaded tree pickles as its file's bytes
+        load, data = hbv._hbv._bvh_from_bytes, (tmp_path / "tree.hbv").read_bytes()
+    else:
+        structure = SCENE
+        load, data = hbv._hbv._scene_from_bytes, SCENE.__reduce__()[1][0]
+    want = structure.intersect(x.o, x.d)
+    for kind, given in _byte_kinds(data).items():
+        _assert_same_bits(load(given).intersect(x.o, x.d), want, f"{what} from {kind}")
+    arr = np.frombuffer(data, np.uint8)
+    for bad in (arr.astype(np.float32), arr[: len(arr) // 4 * 4].reshape(-1, 4), "text", 3):
+        _assert_refused(lambda: load(bad), "data")
+    with pytest.raises(ValueError):
+        load(arr[:-1])

@@ -10,7 +10,7 @@ use numpy::{
 };
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyDict;
+use pyo3::types::{PyBytes, PyDict};
 
 /// The values of an argument array as one slice of `T`, in C order: the only way this module
 /// reads the memory of an array it is handed.
@@ -304,6 +304,46 @@ pub fn integer_values(name: &str, array: &Bound<'_, PyUntypedArray>) -> PyResult
         let values = ArrayValues::<i64>::read(name, array)?;
         values.as_slice().iter().map(|&i| i128::from(i)).collect()
     })
+}
+
+/// The bytes of a file handed over in memory: `bytes` (read in place) or anything NumPy reads as
+/// a one-axis array of single bytes (a `bytearray`, a `memoryview`, `np.frombuffer(buf,
+/// np.uint8, offset=1)`, a strided slice), through [`ArrayValues`].
+pub enum Bytes<'py> {
+    Python(Bound<'py, PyBytes>),
+    Array(ArrayValues<'py, u8>),
+}
+
+impl Bytes<'_> {
+    /// Reads `obj`, or a TypeError / ValueError naming the argument.
+    pub fn read<'py>(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<Bytes<'py>> {
+        if let Ok(bytes) = obj.cast::<PyBytes>() {
+            return Ok(Bytes::Python(bytes.clone()));
+        }
+        let array = as_ndarray(name, obj)?;
+        let dtype = array.dtype();
+        if !(matches!(dtype.kind(), b'u' | b'i') && dtype.itemsize() == 1) {
+            return Err(PyTypeError::new_err(format!(
+                "{name}: expected bytes or an array of uint8, got {} of dtype {}",
+                type_name(obj),
+                dtype.str()?
+            )));
+        }
+        if array.ndim() != 1 {
+            return Err(PyValueError::new_err(format!(
+                "{name}: expected shape (N,), got {}",
+                shape_text(array.shape())
+            )));
+        }
+        Ok(Bytes::Array(ArrayValues::read(name, &array)?))
+    }
+
+    pub fn as_slice(&self) -> &[u8] {
+        match self {
+            Bytes::Python(bytes) => bytes.as_bytes(),
+            Bytes::Array(array) => array.as_slice(),
+        }
+    }
 }
 
 /// A ray interval bound: one value for every ray, or one per ray.
