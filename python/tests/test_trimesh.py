@@ -459,10 +459,19 @@ def test_trimesh_hits_checks_its_arguments():
         call(index_ray=zero - 1)
     with pytest.raises(ValueError, match="faces: row 0"):
         call(faces=f + 1)
-    with pytest.raises(TypeError, match="vertices"):
-        call(vertices=v.astype(np.float32))
+    with pytest.raises(TypeError, match="faces"):
+        call(faces=f.astype(np.float64))
     with pytest.raises(ValueError, match="t: expected 1 rows"):
         call(t=np.ones(2, np.float32))
+    with pytest.raises(ValueError, match="prim: expected shape"):
+        call(prim=np.zeros(2, np.int64))
+    # other dtypes and layouts are read too, with the same answers
+    np.testing.assert_array_equal(
+        call(vertices=v.astype(np.float32), faces=f.astype(np.uint16), t=t.astype(np.float64))[2],
+        [[0.2, 0.2, 0.0]],
+    )
+    misaligned = np.frombuffer(b"\0" + v.tobytes(), dtype=np.float64, offset=1).reshape(3, 3)
+    np.testing.assert_array_equal(call(vertices=misaligned)[2], [[0.2, 0.2, 0.0]])
     with pytest.raises(ValueError, match="directions"):
         call(directions=np.zeros((2, 3)))
     with pytest.raises(ValueError, match="give both"):

@@ -11,15 +11,12 @@ use std::ops::Range;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use hbv::glam::DVec3;
-use numpy::{
-    IntoPyArray, PyArray1, PyArrayMethods, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArray,
-    PyUntypedArrayMethods,
-};
+use numpy::{IntoPyArray, PyArrayDescrMethods, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyTuple;
 
-use crate::arrays::{as_ndarray, float_array, shape_text, FloatSlice};
+use crate::arrays::{as_ndarray, float_array, shape_text, ArrayValues, FloatSlice};
 use crate::output_column::OutputColumn;
 use crate::thread_pool::{fill_rows, run_on_threads, ThreadCount, SERIAL_ROWS};
 use rayon::prelude::*;
@@ -44,8 +41,10 @@ const SAME_PLACE: f64 = 1.0 / (1u64 << 20) as f64;
 /// plane gives no finite point (a ray in the plane) it is `o + t·d`.
 ///
 /// index_ray, prim: (H,) int64; t: (H,) float32; origins, directions: (N, 3) float32 or float64;
-/// size: the mesh's size (its box's diagonal); vertices: (V, 3) float64 and faces: (F, 3)
-/// int64, C-ordered. Indices out of range raise `ValueError` naming the argument and the row.
+/// size: the mesh's size (its box's diagonal); vertices: (V, 3) float64 (float32 and integers
+/// read too) and faces: (F, 3) integer. Arrays are read in place when aligned, C-ordered and of
+/// these dtypes, converted otherwise. Indices out of range raise `ValueError` naming the
+/// argument and the row.
 #[pyfunction]
 #[pyo3(signature = (index_ray, t, prim, origins, directions, size, max_hits=None, vertices=None, faces=None, threads=None))]
 #[allow(clippy::too_many_arguments)]
@@ -62,23 +61,16 @@ pub fn trimesh_hits<'py>(
     faces: Option<&Bound<'py, PyAny>>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyTuple>> {
-    let index_ray = c_array1::<i64>("index_ray", index_ray, "int64")?;
-    let hits = index_ray.len();
-    let t = c_array1::<f32>("t", t, "float32")?;
-    let prim = c_array1::<i64>("prim", prim, "int64")?;
-    for (name, len) in [("t", t.len()), ("prim", prim.len())] {
-        if len != hits {
-            return Err(PyValueError::new_err(format!(
-                "{name}: expected {hits} rows, as index_ray has, got {len}"
-            )));
-        }
-    }
+    let index_ray = int64_values("index_ray", index_ray, None, None)?;
+    let hits = index_ray.as_slice().len();
+    let (t, _) = float_array("t", t, None, Some((hits, "index_ray")))?;
+    let prim = int64_values("prim", prim, None, Some((hits, "index_ray")))?;
     let (origins, rays) = float_array("origins", origins, Some(3), None)?;
     let (directions, _) = float_array("directions", directions, Some(3), Some((rays, "origins")))?;
     let planes = match (vertices, faces) {
         (Some(v), Some(f)) => Some((
-            c_array2::<f64>("vertices", v, "float64")?,
-            c_array2::<i64>("faces", f, "int64")?,
+            float_array("vertices", v, Some(3), None)?,
+            int64_values("faces", f, Some(3), None)?,
         )),
         (None, None) => None,
         _ => {
@@ -87,14 +79,14 @@ pub fn trimesh_hits<'py>(
             ))
         }
     };
-    let planes = match &planes {
-        Some((v, f)) => Some(PlaneMesh {
-            vertices: v.as_slice()?,
-            faces: f.as_slice()?,
-        }),
-        None => None,
-    };
-    let (index_ray, t, prim) = (index_ray.as_slice()?, t.as_slice()?, prim.as_slice()?);
+    let planes = planes
+        .as_ref()
+        .map(|((vertices, vertex_count), faces)| PlaneMesh {
+            vertices: vertices.values(),
+            vertex_count: *vertex_count,
+            faces: faces.as_slice(),
+        });
+    let (index_ray, t, prim) = (index_ray.as_slice(), t.values(), prim.as_slice());
     check_indices("index_ray", index_ray, rays)?;
     if let Some(planes) = &planes {
         check_indices("prim", prim, planes.faces.len() / 3)?;
@@ -134,7 +126,7 @@ pub fn trimesh_hits<'py>(
 /// The hits of a query as hbv lists them, and the rays they are on.
 struct HitList<'a> {
     index_ray: &'a [i64],
-    t: &'a [f32],
+    t: FloatSlice<'a>,
     prim: &'a [i64],
     origins: FloatSlice<'a>,
     directions: FloatSlice<'a>,
@@ -167,12 +159,12 @@ impl HitList<'_> {
         // ray has 0 to a few hits), and with no value carried from hit to hit but the rank:
         // the walk cost 2.5 times as much with them.
         for k in rows.clone() {
-            let t_k = f64::from(t[k]);
+            let t_k = f64::from(t.at(k));
             let same_ray = k > rows.start && index_ray[k] == index_ray[k - 1];
             next_rank *= usize::from(same_ray);
             // |t_k - t_previous|·|d| <= SAME_PLACE·(t_k·|d| + size), without a square root:
             // (t_k - t_previous - SAME_PLACE·t_k)·|d| <= SAME_PLACE·size.
-            let t_previous = f64::from(t[k.saturating_sub(1)]);
+            let t_previous = f64::from(t.at(k.saturating_sub(1)));
             let gap = t_k - t_previous - SAME_PLACE * t_k;
             let length = squared_length(self.directions, index_ray[k] as usize);
             let repeat =
@@ -234,7 +226,7 @@ impl HitList<'_> {
                 tri[rank][row].write(self.prim[k]);
                 ray[rank][row].write(self.index_ray[k]);
                 if let Some(t) = t.as_mut() {
-                    t[rank][row].write(self.t[k]);
+                    t[rank][row].write(self.t.at(k));
                 }
                 next[rank] += 1;
             });
@@ -264,7 +256,7 @@ impl HitList<'_> {
             usize::MAX => Ok((tri, ray, Some(locations))),
             face => Err(PyValueError::new_err(format!(
                 "faces: row {face}: a vertex index outside 0..{}",
-                planes.vertices.len() / 3
+                planes.vertex_count
             ))),
         }
     }
@@ -287,10 +279,11 @@ impl HitList<'_> {
     }
 }
 
-/// The float64 mesh whose triangles' planes locate the hits: C-ordered (V, 3) vertices and
+/// The mesh whose triangles' planes locate the hits: (V, 3) vertices, read as float64, and
 /// (F, 3) faces, flat.
 struct PlaneMesh<'a> {
-    vertices: &'a [f64],
+    vertices: FloatSlice<'a>,
+    vertex_count: usize,
     faces: &'a [i64],
 }
 
@@ -300,7 +293,7 @@ impl PlaneMesh<'_> {
     fn corners(&self, face: usize) -> Option<[DVec3; 3]> {
         let corner = |c: usize| {
             let v = usize::try_from(self.faces[3 * face + c]).ok()?;
-            self.vertices.get(3 * v..3 * v + 3).map(DVec3::from_slice)
+            (v < self.vertex_count).then(|| self.vertices.row3_f64(v))
         };
         Some([corner(0)?, corner(1)?, corner(2)?])
     }
@@ -388,60 +381,41 @@ impl<'a> RunPieces<'a> {
     }
 }
 
-/// A C-ordered array of shape (N, 3) and element type `T`, borrowed.
-fn c_array2<'py, T: numpy::Element>(
+/// An integer array of shape (N,) (`columns` None) or (N, `columns`), read as int64 (in place
+/// where [`ArrayValues`] can); `rows` fixes N. A TypeError for other dtypes, a ValueError for
+/// other shapes, each naming the argument.
+fn int64_values<'py>(
     name: &str,
     obj: &Bound<'py, PyAny>,
-    dtype: &str,
-) -> PyResult<PyReadonlyArray2<'py, T>> {
-    let array = typed::<T>(name, obj, dtype, 2)?;
-    if array.shape()[1] != 3 {
-        return Err(PyValueError::new_err(format!(
-            "{name}: expected shape (N, 3), got {}",
-            shape_text(array.shape())
-        )));
-    }
-    Ok(array.cast_into::<numpy::PyArray2<T>>()?.readonly())
-}
-
-/// A C-ordered 1-D array of element type `T`, borrowed.
-fn c_array1<'py, T: numpy::Element>(
-    name: &str,
-    obj: &Bound<'py, PyAny>,
-    dtype: &str,
-) -> PyResult<PyReadonlyArray1<'py, T>> {
-    let array = typed::<T>(name, obj, dtype, 1)?;
-    Ok(array.cast_into::<PyArray1<T>>()?.readonly())
-}
-
-/// `obj` as a C-ordered array of element type `T` and `dims` dimensions, as `hbv.trimesh`
-/// prepares them (no conversion); a TypeError or ValueError naming the argument otherwise.
-fn typed<'py, T: numpy::Element>(
-    name: &str,
-    obj: &Bound<'py, PyAny>,
-    dtype: &str,
-    dims: usize,
-) -> PyResult<Bound<'py, PyUntypedArray>> {
+    columns: Option<usize>,
+    rows: Option<(usize, &str)>,
+) -> PyResult<ArrayValues<'py, i64>> {
     let array = as_ndarray(name, obj)?;
-    if array.cast::<numpy::PyArrayDyn<T>>().is_err() {
+    let kind = array.dtype().kind();
+    if kind != b'i' && kind != b'u' {
         return Err(PyTypeError::new_err(format!(
-            "{name}: expected dtype {dtype}, got {}",
+            "{name}: expected an integer array, got dtype {}",
             array.dtype().str()?
         )));
     }
-    if array.ndim() != dims {
-        let want = if dims == 1 { "(H,)" } else { "(N, 3)" };
+    let shape = array.shape();
+    let columns_ok = match columns {
+        Some(c) => shape.len() == 2 && shape[1] == c,
+        None => shape.len() == 1,
+    };
+    let rows_ok = rows.is_none_or(|(n, _)| shape.first() == Some(&n));
+    if !(columns_ok && rows_ok) {
+        let want = match (columns, rows) {
+            (Some(c), _) => format!("(N, {c})"),
+            (None, Some((n, other))) => format!("({n},), as {other} has"),
+            (None, None) => "(N,)".to_owned(),
+        };
         return Err(PyValueError::new_err(format!(
             "{name}: expected shape {want}, got {}",
-            shape_text(array.shape())
+            shape_text(shape)
         )));
     }
-    if !array.is_c_contiguous() {
-        return Err(PyValueError::new_err(format!(
-            "{name}: expected a C-ordered array"
-        )));
-    }
-    Ok(array)
+    ArrayValues::read(name, &array)
 }
 
 /// Every index in `0..len`; a ValueError naming the argument and the first row outside.
