@@ -489,3 +489,18 @@ def test_trimesh_hits_checks_its_arguments():
     assert ray.tolist() == [0, 1, 2, 0, 2] and tri.tolist() == [0, 3, 4, 2, 5]
     tri, ray, _ = hbv._hbv.trimesh_hits(index_ray, ts, prims, *rays3, 1.0, 1)
     assert ray.tolist() == [0, 1, 2] and tri.tolist() == [0, 3, 4]
+    # a ray of 300 hits (ranks past a byte) among rays of 1 to 3, on one thread and several
+    counts = np.r_[np.random.default_rng(5).integers(1, 4, 3000), 300, [2] * 500]
+    index_ray = np.repeat(np.arange(len(counts)), counts)
+    ts = np.concatenate([np.arange(1, c + 1) for c in counts]).astype(np.float32)
+    prims = np.arange(len(index_ray), dtype=np.int64)
+    rays_n = np.zeros((len(counts), 3)), np.tile([0.0, 0.0, 1.0], (len(counts), 1))
+    rank = ts.astype(np.int64) - 1
+    for max_hits in (None, 2, 280):
+        kept = np.ones(len(rank), bool) if max_hits is None else rank < max_hits
+        order = np.flatnonzero(kept)[np.argsort(rank[kept], kind="stable")]
+        for threads in (1, 2):
+            tri, ray, _ = hbv._hbv.trimesh_hits(index_ray, ts, prims, *rays_n, 1.0, max_hits,
+                                                threads=threads)
+            np.testing.assert_array_equal(ray, index_ray[order])
+            np.testing.assert_array_equal(tri, order)

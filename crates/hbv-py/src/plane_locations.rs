@@ -135,6 +135,9 @@ struct HitList<'a> {
 /// Output columns: triangle, ray, and (when asked) location of each hit.
 type Columns = (Vec<i64>, Vec<i64>, Option<Vec<[f64; 3]>>);
 
+/// A hit's rank, noted in a byte, when the hit is not kept.
+const NOT_KEPT: u8 = u8::MAX;
+
 /// Which hits of a ray are kept, and their ranks: nearest first, a hit at the place of the
 /// ray's previous hit left out (see [`SAME_PLACE`]), ranks from `max_hits` on left out.
 struct RankRule {
@@ -198,17 +201,21 @@ impl HitList<'_> {
                 workers
             },
         );
-        // How many hits of each rank each run keeps.
-        let counts = on_each(runs.clone(), threads, |run| {
+        // How many hits of each rank each run keeps, and each hit's rank while they fit a byte.
+        let walks = on_each(runs.clone(), threads, |run| {
             let mut per_rank = Vec::new();
-            self.for_each_kept(rule, run, |_, rank| {
+            let mut ranks = vec![NOT_KEPT; run.len()];
+            self.for_each_kept(rule, run.clone(), |k, rank| {
                 if per_rank.len() == rank {
                     per_rank.push(0);
                 }
                 per_rank[rank] += 1;
+                ranks[k - run.start] = u8::try_from(rank).unwrap_or(NOT_KEPT);
             });
-            per_rank
+            let ranks = (per_rank.len() <= usize::from(NOT_KEPT)).then_some(ranks);
+            (per_rank, ranks)
         })?;
+        let (counts, ranks): (Vec<_>, Vec<_>) = walks.into_iter().unzip();
         let kept = counts.iter().flatten().sum::<usize>();
         let mut tri = OutputColumn::<i64>::new(kept);
         let mut ray = OutputColumn::<i64>::new(kept);
@@ -218,22 +225,42 @@ impl HitList<'_> {
             ray: pieces_of(ray.rows(), &counts),
             t: planes.map(|_| pieces_of(t.rows(), &counts)),
         };
-        let work = pieces.into_runs().into_iter().zip(runs).collect();
-        on_each(work, threads, |((mut tri, mut ray, mut t), run)| {
-            let mut next = vec![0usize; tri.len()];
-            self.for_each_kept(rule, run, |k, rank| {
-                let row = next[rank];
-                tri[rank][row].write(self.prim[k]);
-                ray[rank][row].write(self.index_ray[k]);
-                if let Some(t) = t.as_mut() {
-                    t[rank][row].write(self.t.at(k));
+        let work = pieces
+            .into_runs()
+            .into_iter()
+            .zip(runs.into_iter().zip(ranks))
+            .collect();
+        on_each(
+            work,
+            threads,
+            |((mut tri, mut ray, mut t), (run, ranks))| {
+                let mut next = vec![0usize; tri.len()];
+                let mut place = |k: usize, rank: usize| {
+                    let row = next[rank];
+                    tri[rank][row].write(self.prim[k]);
+                    ray[rank][row].write(self.index_ray[k]);
+                    if let Some(t) = t.as_mut() {
+                        t[rank][row].write(self.t.at(k));
+                    }
+                    next[rank] += 1;
+                };
+                match ranks {
+                    // The ranks the count noted, read back (a third of the work of walking again).
+                    Some(ranks) => {
+                        for (k, &rank) in run.zip(&ranks) {
+                            if rank != NOT_KEPT {
+                                place(k, usize::from(rank));
+                            }
+                        }
+                    }
+                    None => self.for_each_kept(rule, run, place),
                 }
-                next[rank] += 1;
-            });
-        })?;
+            },
+        )?;
         // SAFETY: the pieces cover every row of each column once (`pieces_of` cuts the column
-        // by the counts), and each run wrote all of its pieces' rows: the second walk of a run
-        // keeps the same hits with the same ranks as the walk that counted them.
+        // by the counts), and each run wrote all of its pieces' rows: it places the hits the
+        // walk that counted them kept, with the same ranks (noted by that walk when every rank
+        // fits below NOT_KEPT, else found again by the same walk).
         let (tri, ray) = unsafe { (tri.into_filled(), ray.into_filled()) };
         let Some(planes) = planes else {
             return Ok((tri, ray, None));
