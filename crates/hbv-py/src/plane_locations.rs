@@ -445,16 +445,17 @@ fn int64_values<'py>(
     ArrayValues::read(name, &array)
 }
 
-/// Every index in `0..len`; a ValueError naming the argument and the first row outside.
+/// Every index in `0..len`; a ValueError naming the argument and the first row outside. (A
+/// fold without early exit first, which the compiler vectorizes: the search for the row, which
+/// stops at it, does not.)
 fn check_indices(name: &str, indices: &[i64], len: usize) -> PyResult<()> {
-    match indices
-        .iter()
-        .position(|&i| usize::try_from(i).map_or(true, |i| i >= len))
-    {
-        Some(row) => Err(PyValueError::new_err(format!(
-            "{name}: row {row}: index {} outside 0..{len}",
-            indices[row]
-        ))),
-        None => Ok(()),
+    let outside = |i: i64| i as u64 >= len as u64; // a negative index is above 2^63
+    if !indices.iter().fold(false, |any, &i| any | outside(i)) {
+        return Ok(());
     }
+    let row = indices.iter().position(|&i| outside(i)).unwrap_or_default();
+    Err(PyValueError::new_err(format!(
+        "{name}: row {row}: index {} outside 0..{len}",
+        indices[row]
+    )))
 }
