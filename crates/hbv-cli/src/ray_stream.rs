@@ -214,6 +214,14 @@ impl Column {
         let shape = shape_str(&header.shape);
         let held = place.size - header_bytes.len() as u64;
         let declared = (rows as u128) * (row_width as u128) * (element.size as u128);
+        // Every element takes at least one byte: a count beyond the member's bytes is a header
+        // that lies (the message of the whole-file reader).
+        if (rows as u128) * (row_width as u128) > u128::from(place.size) {
+            return Err(invalid(format!(
+                "the .npy header declares shape {shape} but the member holds only {} bytes",
+                place.size
+            )));
+        }
         if declared > u128::from(held) {
             return Err(invalid(format!(
                 "the member ends before the data of shape {shape} its header declares"
@@ -287,7 +295,9 @@ impl Column {
                 }
             }
         }
-        if rows.end == self.rows {
+        // A stream of whole rows has then read the member to its end (the streams of a member
+        // in Fortran order end where the next component starts).
+        if rows.end == self.rows && self.streams.len() == 1 {
             self.streams[0].check_end().map_err(error)?;
         }
         Ok(())
