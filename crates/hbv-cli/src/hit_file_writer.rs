@@ -1,5 +1,5 @@
 //! Writing hit and occlusion files (`docs/RAYS.md`) a chunk of rays at a time, into an archive
-//! laid out for all of them up front ([`NpzInPlace`]): memory for one chunk's columns, whatever
+//! laid out for all of them up front (`NpzInPlace`): memory for one chunk's columns, whatever
 //! the number of rays.
 
 use std::fs::File;

@@ -5,6 +5,7 @@
 
 use std::fs::File;
 use std::path::{Path, PathBuf};
+use std::process::Output;
 
 mod common;
 use common::scenes::{instanced_scene, rays_at as scene_rays_at};
@@ -32,6 +33,19 @@ fn s(path: &Path) -> &str {
 fn run(args: &[&str]) {
     let out = hbv(args);
     assert!(out.status.success(), "hbv {args:?}: {}", stderr(&out));
+}
+
+/// Runs `hbv trace MESH --rays RAYS --out OUT` with `flags`.
+fn trace(mesh: &Path, rays: &Path, out: &Path, flags: &[&str]) -> Output {
+    let mut args = vec!["trace", s(mesh), "--rays", s(rays), "--out", s(out)];
+    args.extend(flags);
+    hbv(&args)
+}
+
+/// [`trace`], asserting success.
+fn trace_ok(mesh: &Path, rays: &Path, out: &Path, flags: &[&str]) {
+    let o = trace(mesh, rays, out, flags);
+    assert!(o.status.success(), "hbv trace {flags:?}: {}", stderr(&o));
 }
 
 /// Rays from random points of the box around `lo..lo + extent` in random directions, every
@@ -174,14 +188,7 @@ fn an_empty_ray_file_gives_an_empty_hit_file() {
     write_rays(&rays_path, &[], Replace::Never).unwrap();
     assert_eq!(RayChunks::open(&rays_path).unwrap().len(), 0);
     let out = dir.path().join("hits.npz");
-    run(&[
-        "trace",
-        s(&mesh_path),
-        "--rays",
-        s(&rays_path),
-        "--out",
-        s(&out),
-    ]);
+    trace_ok(&mesh_path, &rays_path, &out, &[]);
     assert!(hit_file::read_scene_hits(&out).unwrap().is_empty());
 }
 
@@ -195,34 +202,18 @@ fn assert_same_file_whatever_the_chunk(
     flags: &[&str],
 ) -> PathBuf {
     let reference = dir.join("hits-default.npz");
-    let mut args = vec![
-        "trace",
-        s(target),
-        "--rays",
-        s(rays_path),
-        "--out",
-        s(&reference),
-        "--force",
-    ];
-    args.extend(flags);
-    run(&args);
+    trace_ok(
+        target,
+        rays_path,
+        &reference,
+        &[&["--force"], flags].concat(),
+    );
     let expected = std::fs::read(&reference).unwrap();
     for &chunk in chunks {
         let out = dir.join(format!("hits-{chunk}.npz"));
         let chunk = chunk.to_string();
-        let mut args = vec![
-            "trace",
-            s(target),
-            "--rays",
-            s(rays_path),
-            "--out",
-            s(&out),
-            "--force",
-            "--chunk-rays",
-            &chunk,
-        ];
-        args.extend(flags);
-        run(&args);
+        let chunked = [&["--force", "--chunk-rays", &chunk], flags].concat();
+        trace_ok(target, rays_path, &out, &chunked);
         assert!(
             std::fs::read(&out).unwrap() == expected,
             "{flags:?}: chunks of {chunk} give another file than one chunk"
@@ -285,32 +276,14 @@ fn every_ray_file_storage_traces_to_the_same_hit_file() {
     let plain = dir.path().join("plain.npz");
     write_rays(&plain, &rays, Replace::Never).unwrap();
     let reference = dir.path().join("hits-plain.npz");
-    run(&[
-        "trace",
-        s(&mesh_path),
-        "--rays",
-        s(&plain),
-        "--out",
-        s(&reference),
-    ]);
+    trace_ok(&mesh_path, &plain, &reference, &[]);
     let expected = std::fs::read(&reference).unwrap();
-    for storage in storages().into_iter().filter(|s| !s.float64) {
-        // float64 rays round to the float32 of the plain file only where they came from one:
-        // these did, so every storage gives the same rays.
+    // float64 copies of float32 values convert back exactly: every storage holds the same rays.
+    for storage in storages() {
         let path = dir.path().join("stored.npz");
         write_stored(&path, &rays, storage);
         let out = dir.path().join("hits.npz");
-        run(&[
-            "trace",
-            s(&mesh_path),
-            "--rays",
-            s(&path),
-            "--out",
-            s(&out),
-            "--force",
-            "--chunk-rays",
-            "37",
-        ]);
+        trace_ok(&mesh_path, &path, &out, &["--force", "--chunk-rays", "37"]);
         assert!(std::fs::read(&out).unwrap() == expected, "{storage:?}");
     }
 }
@@ -389,16 +362,7 @@ fn a_ray_file_that_fails_part_way_leaves_no_output() {
         write_stored(&rays_path, &rays, storage);
         damage_member(&rays_path, "directions.npy");
         let before = listing();
-        let o = hbv(&[
-            "trace",
-            s(&mesh_path),
-            "--rays",
-            s(&rays_path),
-            "--out",
-            s(&out),
-            "--chunk-rays",
-            "300",
-        ]);
+        let o = trace(&mesh_path, &rays_path, &out, &["--chunk-rays", "300"]);
         assert!(!o.status.success());
         let message = stderr(&o);
         assert!(message.contains("cannot read rays"), "{message}");
@@ -416,15 +380,7 @@ fn a_ray_file_that_fails_part_way_leaves_no_output() {
     let bytes = std::fs::read(&rays_path).unwrap();
     std::fs::write(&rays_path, &bytes[..bytes.len() / 2]).unwrap();
     std::fs::write(&out, b"keep").unwrap();
-    let o = hbv(&[
-        "trace",
-        s(&mesh_path),
-        "--rays",
-        s(&rays_path),
-        "--out",
-        s(&out),
-        "--force",
-    ]);
+    let o = trace(&mesh_path, &rays_path, &out, &["--force"]);
     assert!(!o.status.success());
     assert!(
         stderr(&o).contains("cut.npz is not an .npz archive"),
@@ -436,16 +392,8 @@ fn a_ray_file_that_fails_part_way_leaves_no_output() {
 
 #[test]
 fn a_chunk_of_zero_rays_is_refused() {
-    let o = hbv(&[
-        "trace",
-        "m.obj",
-        "--rays",
-        "r.npz",
-        "--out",
-        "h.npz",
-        "--chunk-rays",
-        "0",
-    ]);
+    let (m, r, h) = (Path::new("m.obj"), Path::new("r.npz"), Path::new("h.npz"));
+    let o = trace(m, r, h, &["--chunk-rays", "0"]);
     assert!(!o.status.success());
     assert!(stderr(&o).contains("--chunk-rays"), "{}", stderr(&o));
 }

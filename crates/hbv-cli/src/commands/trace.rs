@@ -68,8 +68,8 @@ pub struct TraceArgs {
     /// Acceleration structure: a BVH (--builder, --layout) or a uniform grid.
     #[arg(long, value_enum, default_value_t = AccelName::Bvh)]
     pub accel: AccelName,
-    /// Trace the rays this many times and report the median time (the answers are the same
-    /// every time; the file holds one copy). The first run pays for cold caches and for the
+    /// Trace each chunk of rays this many times and report the median of the runs' total
+    /// times (the answers are the same every time; the file holds one copy). The first run pays for cold caches and for the
     /// first touch of the answers' pages, which later runs, like a peer's warmed-up calls in a
     /// benchmark, do not.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
