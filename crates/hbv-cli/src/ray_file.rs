@@ -317,7 +317,13 @@ impl Archive {
                         deflated: method == CompressionMethod::Deflated,
                         data_start: member.data_start(),
                         stored_size: member.compressed_size(),
-                        size: member.size(),
+                        // A stored member is the bytes it takes, whatever size the
+                        // archive declares uncompressed (as the zip crate reads it).
+                        size: if method == CompressionMethod::Stored {
+                            member.compressed_size()
+                        } else {
+                            member.size()
+                        },
                         crc32: member.crc32(),
                     })
                 }

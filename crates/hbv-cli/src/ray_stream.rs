@@ -227,7 +227,9 @@ impl Column {
                 "the member ends before the data of shape {shape} its header declares"
             )));
         }
-        if declared < u128::from(held) {
+        // A deflated member's declared size bounds it (more data is found by its decoding,
+        // [`MemberStream::check_end`]); a stored one's is its size.
+        if declared < u128::from(held) && !place.deflated {
             let extra = u128::from(held) - declared;
             return Err(invalid(format!(
                 "{extra} bytes follow the data of shape {shape} its header declares"
@@ -268,7 +270,7 @@ impl Column {
             |why: String| RayFileError::new(&self.path, Some(&self.name), Reason::Invalid(why));
         let failed = |e: io::Error| {
             let why = if e.kind() == io::ErrorKind::UnexpectedEof {
-                "the file ends within them".to_owned()
+                "the member ends before them".to_owned()
             } else {
                 e.to_string()
             };
@@ -359,7 +361,7 @@ impl MemberStream {
         let mut extra = [0u8; 1];
         match self.read(&mut extra) {
             Ok(0) => {}
-            Ok(_) => return Err("it decompresses to more bytes than the archive declares".into()),
+            Ok(_) => return Err("more bytes follow the data its header declares".into()),
             Err(e) => return Err(format!("cannot read its end: {e}")),
         }
         match &self.crc {

@@ -22,7 +22,7 @@ use hbv_cli::ray_file::{read_rays, write_rays};
 use hbv_cli::ray_stream::RayChunks;
 use ndarray::{Array1, Array2, ShapeBuilder};
 use ndarray_npy::NpzWriter;
-use rand::SeedableRng;
+use rand::{RngExt, SeedableRng};
 use rand_pcg::Pcg64Mcg;
 
 fn s(path: &Path) -> &str {
@@ -117,6 +117,17 @@ fn write_stored(path: &Path, rays: &[Ray], storage: Storage) {
     npz.finish().unwrap();
 }
 
+/// The bits of each ray's values (NaN compares unequal to itself).
+fn ray_bits(rays: &[Ray]) -> Vec<[u32; 8]> {
+    rays.iter()
+        .map(|r| {
+            let [a, b, c] = r.origin.to_array().map(f32::to_bits);
+            let [d, e, f] = r.direction.to_array().map(f32::to_bits);
+            [a, b, c, d, e, f, r.tmin.to_bits(), r.tmax.to_bits()]
+        })
+        .collect()
+}
+
 /// Every storage of a ray file: compressed or not, float32 or 64, C or Fortran order.
 fn storages() -> Vec<Storage> {
     let mut all = Vec::new();
@@ -160,19 +171,9 @@ fn chunked_reads_give_the_whole_file_reader_rays_in_every_storage() {
         let whole = read_rays(&path).unwrap();
         for chunk in [1, 2, 7, 156, 157, 1000] {
             let chunked = read_chunked(&path, chunk);
-            // NaN origins compare unequal: compare the bits.
-            let bits = |rays: &[Ray]| -> Vec<[u32; 8]> {
-                rays.iter()
-                    .map(|r| {
-                        let [a, b, c] = r.origin.to_array().map(f32::to_bits);
-                        let [d, e, f] = r.direction.to_array().map(f32::to_bits);
-                        [a, b, c, d, e, f, r.tmin.to_bits(), r.tmax.to_bits()]
-                    })
-                    .collect()
-            };
             assert_eq!(
-                bits(&chunked),
-                bits(&whole),
+                ray_bits(&chunked),
+                ray_bits(&whole),
                 "{storage:?}, chunks of {chunk}"
             );
         }
@@ -314,6 +315,57 @@ fn scene_hit_files_are_the_same_bytes_whatever_the_chunk_and_answer_as_the_scene
             if flags.is_empty() {
                 let got = hit_file::read_scene_hits(&file).unwrap();
                 assert_eq!(got, want, "{}", target.display());
+            }
+        }
+    }
+}
+
+/// The rays of a file read whole with [`read_rays`] or in chunks of 10 with [`RayChunks`], as
+/// bits, or the error message.
+type ReadResult = Result<Vec<[u32; 8]>, String>;
+
+fn both_readers(path: &Path) -> (ReadResult, ReadResult) {
+    let whole = read_rays(path)
+        .map(|r| ray_bits(&r))
+        .map_err(|e| e.to_string());
+    let chunked = (|| {
+        let mut chunks = RayChunks::open(path)?;
+        let mut all = Vec::new();
+        let mut rays = Vec::new();
+        while chunks.read_next(10, &mut rays)? > 0 {
+            all.extend_from_slice(&rays);
+        }
+        Ok(ray_bits(&all))
+    })()
+    .map_err(|e: hbv_cli::ray_file::RayFileError| e.to_string());
+    (whole, chunked)
+}
+
+/// A bit flipped anywhere in a ray file: the chunked reader reads the rays the whole-file
+/// reader reads, or fails where it fails, with a one-line message naming the file.
+#[test]
+fn damaged_ray_files_are_refused_by_both_readers_alike_never_with_a_panic() {
+    let dir = tempfile::tempdir().unwrap();
+    let rays = random_rays(40, Vec3::splat(-1.0), Vec3::splat(2.0), 6);
+    let mut rng = Pcg64Mcg::seed_from_u64(6);
+    for compressed in [false, true] {
+        let path = dir.path().join("rays.npz");
+        let storage = Storage {
+            compressed,
+            float64: false,
+            fortran: false,
+        };
+        write_stored(&path, &rays, storage);
+        let good = std::fs::read(&path).unwrap();
+        for _ in 0..300 {
+            let mut bytes = good.clone();
+            let at = rng.random_range(0..bytes.len());
+            bytes[at] ^= 1 << rng.random_range(0..8);
+            std::fs::write(&path, &bytes).unwrap();
+            match both_readers(&path) {
+                (Ok(whole), Ok(chunked)) => assert_eq!(whole, chunked, "byte {at}"),
+                (Err(_), Err(e)) => assert!(!e.contains('\n') && e.contains("rays.npz"), "{e}"),
+                (whole, chunked) => panic!("byte {at}: {whole:?} but in chunks {chunked:?}"),
             }
         }
     }
