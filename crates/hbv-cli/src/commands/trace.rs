@@ -69,9 +69,9 @@ pub struct TraceArgs {
     #[arg(long, value_enum, default_value_t = AccelName::Bvh)]
     pub accel: AccelName,
     /// Trace each chunk of rays this many times and report the median of the runs' total
-    /// times (the answers are the same every time; the file holds one copy). The first run pays for cold caches and for the
-    /// first touch of the answers' pages, which later runs, like a peer's warmed-up calls in a
-    /// benchmark, do not.
+    /// times (the answers are the same every time; the file holds one copy). The first run
+    /// pays for cold caches and for the first touch of the answers' pages, which later runs,
+    /// like a peer's warmed-up calls in a benchmark, do not.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub repeat: u32,
     /// Rays read, traced and written at a time: memory holds about 200 bytes per ray of a
@@ -134,45 +134,12 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         Some(source) => load_scene_target(args, source, &pool)?,
         None => build_mesh_target(args, &pool)?,
     };
-    let mut ray_chunks = RayChunks::open(&args.rays).context("cannot read rays")?;
+    let ray_chunks = RayChunks::open(&args.rays).context("cannot read rays")?;
     let ray_count = ray_chunks.len();
-    let chunk_rays = usize::try_from(args.chunk_rays).unwrap_or(usize::MAX);
-    let kind = if args.occluded {
-        HitFileKind::Occlusion
-    } else {
-        HitFileKind::Closest
-    };
-    let progress = TraceProgress::new(ray_count as u64);
-    // Each repetition's time, summed over the chunks.
-    let mut run_seconds = vec![0.0; args.repeat as usize];
-    let mut hit_count = 0;
-    let mut read_failure = None;
-    // The hit file is laid out for every ray up front and filled a chunk at a time; an error
-    // (a ray file that cannot be read on, a full disk) leaves no output, as the atomic write
-    // removes its temporary file.
-    let written = write_atomically(&args.out, replace_policy(args.force), |file| {
-        write_hit_file(file, kind, ray_count, |writer| {
-            let mut rays = Vec::with_capacity(chunk_rays.min(ray_count));
-            loop {
-                match ray_chunks.read_next(chunk_rays, &mut rays) {
-                    Ok(0) => return Ok(()),
-                    Ok(_) => {}
-                    Err(e) => {
-                        read_failure = Some(e);
-                        return Err(io::Error::other("the rays could not be read"));
-                    }
-                }
-                let answers = target.trace_timed(&rays, args, &pool, &mut run_seconds);
-                hit_count += answers.write(writer, &target, &pool)?;
-                progress.advance(rays.len() as u64, &run_seconds);
-            }
-        })
-    });
-    progress.finish();
-    if let Some(e) = read_failure {
-        return Err(anyhow::Error::new(e).context("cannot read rays"));
-    }
-    written.context("cannot write hits")?;
+    let Tally {
+        run_seconds,
+        hit_count,
+    } = trace_in_chunks(args, &target, &pool, ray_chunks)?;
     let trace_seconds = median(&run_seconds);
     let rays_per_second = if trace_seconds > 0.0 {
         ray_count as f64 / trace_seconds
@@ -240,6 +207,65 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         println!("wrote     {}", args.out.display());
     }
     Ok(())
+}
+
+/// What a traced ray file came to.
+struct Tally {
+    /// Each repetition's time (`--repeat`), summed over the chunks.
+    run_seconds: Vec<f64>,
+    /// Rays that hit (or are occluded).
+    hit_count: usize,
+}
+
+/// Traces the rays of `ray_chunks` on `target` a chunk at a time (`--chunk-rays`) and writes
+/// the answers to `--out` as they come.
+///
+/// The hit file is laid out for every ray up front and filled chunk by chunk, through an
+/// atomic write: an error (a ray file that cannot be read on, a full disk) leaves no output,
+/// as the write removes its temporary file.
+fn trace_in_chunks(
+    args: &TraceArgs,
+    target: &Target,
+    pool: &ThreadPool,
+    mut ray_chunks: RayChunks,
+) -> anyhow::Result<Tally> {
+    let ray_count = ray_chunks.len();
+    let chunk_rays = usize::try_from(args.chunk_rays).unwrap_or(usize::MAX);
+    let kind = if args.occluded {
+        HitFileKind::Occlusion
+    } else {
+        HitFileKind::Closest
+    };
+    let progress = TraceProgress::new(ray_count as u64);
+    let mut tally = Tally {
+        run_seconds: vec![0.0; args.repeat as usize],
+        hit_count: 0,
+    };
+    let mut read_failure = None;
+    let written = write_atomically(&args.out, replace_policy(args.force), |file| {
+        write_hit_file(file, kind, ray_count, |writer| {
+            let mut rays = Vec::with_capacity(chunk_rays.min(ray_count));
+            loop {
+                match ray_chunks.read_next(chunk_rays, &mut rays) {
+                    Ok(0) => return Ok(()),
+                    Ok(_) => {}
+                    Err(e) => {
+                        read_failure = Some(e);
+                        return Err(io::Error::other("the rays could not be read"));
+                    }
+                }
+                let answers = target.trace_timed(&rays, args, pool, &mut tally.run_seconds);
+                tally.hit_count += answers.write(writer, target, pool)?;
+                progress.advance(rays.len() as u64, &tally.run_seconds);
+            }
+        })
+    });
+    progress.finish();
+    if let Some(e) = read_failure {
+        return Err(anyhow::Error::new(e).context("cannot read rays"));
+    }
+    written.context("cannot write hits")?;
+    Ok(tally)
 }
 
 /// Loads the mesh (or saved tree) of `--mesh` and builds the structure `--accel` names over it.
