@@ -28,6 +28,7 @@ from .queries import (
     occluded,
     signed_distance,
 )
+from .npy_rays import from_npy
 from .structure_handle import StructureHandle, StructureSpec, open, share
 from .worker_cache import StructureMismatchError, forget, load_counts
 
@@ -39,6 +40,7 @@ __all__ = [
     "contains",
     "count",
     "forget",
+    "from_npy",
     "intersect",
     "intersect_all",
     "load_counts",
