@@ -29,6 +29,7 @@ from .queries import (
     signed_distance,
 )
 from .npy_rays import from_npy
+from .preload import preload
 from .structure_handle import StructureHandle, StructureSpec, open, share
 from .worker_cache import StructureMismatchError, forget, load_counts
 
@@ -46,6 +47,7 @@ __all__ = [
     "load_counts",
     "occluded",
     "open",
+    "preload",
     "share",
     "signed_distance",
 ]
