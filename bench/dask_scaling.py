@@ -122,7 +122,7 @@ def main():
         return time.perf_counter() - start, hits
 
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=None, memory_limit=0) as cluster, Client(cluster) as client:
+                      dashboard_address=":0", memory_limit=0) as cluster, Client(cluster) as client:
         handle = hbv.dask.open(path)
         idle = client.run(worker_memory)
         start = time.perf_counter()
