@@ -107,16 +107,18 @@ def _build(query, handle, form, members, rows, arrays, per_ray, threads):
         elif value is not None:
             scalars[name] = value
     token = tokenize(handle.spec, query, threads, scalars, *inputs[::2])
-    answers = da.blockwise(
-        _answer_chunk, "i", *inputs,
-        name=f"hbv-{query}-{token}", dtype=object, meta=np.empty((0,), object),
-        concatenate=True, adjust_chunks={"i": 1},
-        query=query, array_names=tuple(names), scalars=scalars, spec=handle.spec,
-        payload=handle.payload, local=handle.local, threads=threads,
-    )
+    task = dict(query=query, array_names=tuple(names), scalars=scalars, spec=handle.spec,
+                payload=handle.payload, local=handle.local, threads=threads)
+    name = f"hbv-{query}-{token}"
     if form == "array":
+        # One array per chunk: the answers are the chunks themselves, no member to pick.
         ((_, dtype, _shape),) = members
-        return _member(answers, None, dtype, (), rows, query)
+        return da.blockwise(_answer_chunk, "i", *inputs, name=name, dtype=dtype,
+                            meta=np.empty((0,), dtype), concatenate=True, wrap=False, **task)
+    answers = da.blockwise(
+        _answer_chunk, "i", *inputs, name=name, dtype=object, meta=np.empty((0,), object),
+        concatenate=True, adjust_chunks={"i": 1}, wrap=True, **task,
+    )
     chunk_rows = tuple(float("nan") for _ in rows) if form == "ragged" else rows
     picked = {
         name: _member(answers, name if form == "dict" else position, dtype, shape, chunk_rows, query)
@@ -126,7 +128,7 @@ def _build(query, handle, form, members, rows, arrays, per_ray, threads):
 
 
 def _member(answers, key, dtype, shape, rows, query):
-    label = "answer" if key is None else str(key)
+    label = str(key)
     return answers.map_blocks(
         _pick, key,
         name=f"{answers.name}-{label}".replace(f"hbv-{query}-", f"hbv-{query}-{label}-", 1),
@@ -137,14 +139,13 @@ def _member(answers, key, dtype, shape, rows, query):
 
 
 def _pick(answers_chunk, key):
-    """A member of a chunk's answer (key: its name or position; None: the whole answer)."""
-    answer = answers_chunk[0]
-    return answer if key is None else answer[key]
+    """A member of a chunk's answer (key: its name or position in it)."""
+    return answers_chunk[0][key]
 
 
-def _answer_chunk(*chunks, query, array_names, scalars, spec, payload, local, threads):
+def _answer_chunk(*chunks, query, array_names, scalars, spec, payload, local, threads, wrap):
     """One chunk's answer (on a worker): the in-memory query with the process's cached copy of
-    the structure, in a 1-element object array (the chunk of the answers layer)."""
+    the structure; wrap: in a 1-element object array (the chunk of the answers layer)."""
     structure = payload if local else worker_cache.structure_for(spec, payload)
     arrays = {name: ray_blocks.host_block(chunk) for name, chunk in zip(array_names, chunks)}
     row_start = arrays.pop("row_start", None)
@@ -152,6 +153,8 @@ def _answer_chunk(*chunks, query, array_names, scalars, spec, payload, local, th
     answer = getattr(structure, query)(*positional, threads=threads, **arrays, **scalars)
     if row_start is not None and len(row_start):
         answer = (answer[0] + row_start[0], *answer[1:])
+    if not wrap:
+        return answer
     out = np.empty(1, object)
     out[0] = answer
     return out
