@@ -14,7 +14,8 @@ side that computed them (hit count and sum of t), so no answer crosses a process
    b. throughput: the rays persisted on the workers first, then ``intersect`` timed, in rounds
       interleaved with (1) (medians of --repeat; the ratio: the median of the rounds' ratios,
       target >= 0.9x);
-   c. per-task overhead: --tiny-chunks chunks of one ray each; (wall x workers) / chunks.
+   c. per-task overhead: ``count`` and a sum on --tiny-chunks chunks of one ray each;
+      (wall x workers) / chunks.
 
     /work/venv-dask/bin/python bench/dask_scaling.py [MESH.ply] [--rays 20000000] [--chunk 1000000]
 """
@@ -172,19 +173,19 @@ def main():
               f"{ratio:.2f}x one process (median of {args.repeat} interleaved rounds)")
         del o, d
 
-        # 2c. Per-task overhead: one ray per chunk.
+        # 2c. Per-task overhead: one ray per chunk, each chunk one `count` task and its share of
+        # a sum (the reduction's tree: about one more task per chunk).
         k = args.tiny_chunks
         tiny = dask.persist(*lazy_rays(lo, hi, k, 1, args.seed))
         wait(list(tiny))
         times = []
         for _ in range(args.repeat):
             start = time.perf_counter()
-            dask.compute(*reduced(*tiny))
+            hbv.dask.count(handle, *tiny).sum().compute()
             times.append(time.perf_counter() - start)
         per_chunk = statistics.median(times) * 2 / k
-        print(f"{k} one-ray chunks: {statistics.median(times):.2f} s, {per_chunk * 1e3:.2f} ms per "
-              f"chunk per worker (the query task, its member picks and the reduction's share)")
-
+        print(f"{k} one-ray chunks of count + sum: {statistics.median(times):.2f} s, "
+              f"{per_chunk * 1e3:.2f} ms per chunk per worker")
 
 if __name__ == "__main__":
     main()

@@ -131,6 +131,16 @@ def test_members_and_chunks_before_compute(client):
     assert list(scene_hits) == list(scene().intersect(o[:1], d[:1]))
 
 
+def test_local_scheduler_without_a_cluster():
+    bvh = STRUCTURES["bvh"]()
+    handle = hbv.dask.share(bvh, client=False)
+    assert handle.local
+    o, d = random_rays(N)[:2]
+    with dask.config.set(scheduler="sync"):
+        (got,) = dask.compute(hbv.dask.intersect_all(handle, chunked(o), chunked(d)))
+    assert_same(got, bvh.intersect_all(o, d))
+
+
 def test_bad_arguments_fail_at_graph_build(client):
     bvh = STRUCTURES["bvh"]()
     o, d = random_rays(10)[:2]
@@ -162,6 +172,10 @@ def test_one_load_per_worker(client, tmp_path):
     counts = client.run(hbv.dask.load_counts)
     per_worker = [c.get(handle.checksum, 0) for c in counts.values()]
     assert sum(per_worker) >= 1 and max(per_worker) == 1
+    assert set(hbv.dask.preload(handle).values()) == {1}  # now loaded on both, once each
+    hbv.dask.release(handle)  # dropped everywhere: the next graph loads it again
+    dask.compute(hbv.dask.count(bvh, *many))
+    assert max(c[handle.checksum] for c in client.run(hbv.dask.load_counts).values()) == 2
     # From a shared file: one more load per worker (another source, the same checksum rule).
     path = tmp_path / "soup.hbv"
     bvh.save(path)

@@ -13,10 +13,10 @@ Every query takes a ``BVH``, ``Grid``, ``Scene`` or a handle and returns dask ar
 in-memory call's members and dtypes (``intersect_all``: a ragged tuple of flat arrays, see its
 doc). The structure travels once per worker, never per task: ``share`` scatters its bytes
 (``broadcast=True``), ``open`` names a ``.hbv`` file on shared storage; each worker process keeps
-one loaded copy per checksum (BLAKE2b of the bytes; ``load_counts`` through ``client.run``), and
-a worker whose file differs from the client's refuses (``StructureMismatchError``). ``threads``:
-threads per task (default 1: Dask runs one task per worker thread). docs/DISTRIBUTED.md: real
-clusters, chunk sizes, costs.
+one loaded copy per checksum (BLAKE2b of the bytes; ``load_counts`` through ``client.run``,
+``release`` frees it), and a worker whose file differs from the client's refuses
+(``StructureMismatchError``). ``threads``: threads per task (default 1: Dask runs one task per
+worker thread). docs/DISTRIBUTED.md: real clusters, chunk sizes, costs.
 """
 
 from .queries import (
@@ -30,8 +30,8 @@ from .queries import (
 )
 from .npy_rays import from_npy
 from .preload import preload
-from .structure_handle import StructureHandle, StructureSpec, open, share
-from .worker_cache import StructureMismatchError, forget, load_counts
+from .structure_handle import StructureHandle, StructureSpec, open, release, share
+from .worker_cache import StructureMismatchError, load_counts
 
 __all__ = [
     "StructureHandle",
@@ -40,7 +40,6 @@ __all__ = [
     "closest_point",
     "contains",
     "count",
-    "forget",
     "from_npy",
     "intersect",
     "intersect_all",
@@ -48,6 +47,7 @@ __all__ = [
     "occluded",
     "open",
     "preload",
+    "release",
     "share",
     "signed_distance",
 ]

@@ -14,6 +14,7 @@ from dask.base import tokenize
 from .. import _hbv
 from . import ray_blocks, worker_cache
 from .answers import answer_of
+from .structure_bytes import kind_of
 from .structure_handle import StructureHandle, share
 
 
@@ -80,11 +81,7 @@ def _point_query(query, structure, points, mask, threads):
 
 
 def _prepare(query, structure, mask):
-    kind = structure.kind if isinstance(structure, StructureHandle) else None
-    if kind is None:
-        from .structure_bytes import kind_of
-
-        kind = kind_of(structure)
+    kind = structure.kind if isinstance(structure, StructureHandle) else kind_of(structure)
     form, members = answer_of(query, kind, hasattr(_hbv.Scene, "signed_distance"))
     if mask is not None and kind != "scene":
         raise TypeError(f"{query}: mask is a Scene's (instance masks); this structure is a {kind}")

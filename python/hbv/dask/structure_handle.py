@@ -12,7 +12,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 
-from . import structure_bytes
+from . import structure_bytes, worker_cache
 
 
 @dataclass(frozen=True)
@@ -61,8 +61,8 @@ _shared: dict[tuple[str, str], StructureHandle] = {}
 def share(structure, client=None) -> StructureHandle:
     """Sends a BVH, Grid or Scene to every worker once (its bytes, ``broadcast=True``).
 
-    client: a ``distributed.Client`` (default: the current one). Without distributed or a
-    client, the handle holds the structure itself, for Dask's local schedulers.
+    client: a ``distributed.Client`` (default: the current one); False, or no client at all:
+    the handle holds the structure itself, for Dask's local schedulers (threads, synchronous).
     """
     if isinstance(structure, StructureHandle):
         return structure
@@ -71,7 +71,7 @@ def share(structure, client=None) -> StructureHandle:
     spec = StructureSpec(kind, structure_bytes.checksum(data), None, layout)
     if client is None:
         client = _current_client()
-    if client is None:
+    if client is None or client is False:
         return StructureHandle(spec, structure, local=True)
     key = (client.id, spec.checksum)
     if key not in _shared:
@@ -89,6 +89,17 @@ def open(path, layout: str | None = None) -> StructureHandle:  # noqa: A001 (hbv
     if layout is not None and kind != "bvh":
         raise TypeError(f"layout: only a BVH file takes a layout, {path} holds a scene")
     return StructureHandle(StructureSpec(kind, structure_bytes.file_checksum(path), path, layout))
+
+
+def release(handle: StructureHandle, client=None) -> None:
+    """Frees a structure on the cluster: every worker drops its loaded copy, the client its
+    scattered bytes (a later query loads or sends it again)."""
+    if client is None:
+        client = _current_client()
+    if handle.local or client is None:
+        return
+    _shared.pop((client.id, handle.checksum), None)
+    client.run(worker_cache.drop, handle.checksum)
 
 
 def _current_client():

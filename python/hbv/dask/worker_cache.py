@@ -3,7 +3,7 @@
 Every task that needs a structure asks ``structure_for``; the first one in the process loads it
 (from the scattered bytes, or from the shared file after checking its checksum against the one
 the client took), every later one, of any graph, gets the same object. ``load_counts`` says how
-often each checksum was loaded in this process (1, unless ``forget`` dropped it), for
+often each checksum was loaded in this process (1, unless ``drop`` dropped it), for
 ``client.run``.
 """
 
@@ -61,7 +61,7 @@ def load_counts() -> dict[str, int]:
         return dict(_loads)
 
 
-def forget(checksum: str | None = None) -> None:
+def drop(checksum: str | None = None) -> None:
     """Drops one loaded structure (or all of them: None) from this process."""
     with _lock:
         if checksum is None:
