@@ -238,4 +238,5 @@ def test_killed_worker_is_replaced_and_answers_are_the_same(client):
     assert_same(got, structure.intersect(o, d))
     client.wait_for_workers(2, timeout=30)
     assert set(client.run(os.getpid).values()) != set(pids.values())
-    assert all(max(c.values(), default=0) == 1 for c in client.run(hbv.dask.load_counts).values())
+    checksum = hbv.dask.share(structure).checksum
+    assert all(c.get(checksum, 1) == 1 for c in client.run(hbv.dask.load_counts).values())
