@@ -171,6 +171,8 @@ def main():
         print(f"one process, 2 threads: {alone:.2f} s, {n / alone / 1e6:.2f} M rays/s ({hits:,} hits)")
         print(f"cluster 2 x 1 thread:   {together:.2f} s, {n / together / 1e6:.2f} M rays/s, "
               f"{ratio:.2f}x one process (median of {args.repeat} interleaved rounds)")
+        print("rounds (one process s, cluster s, ratio): " + ", ".join(
+            f"({a:.2f}, {t:.2f}, {a / t:.2f}x)" for a, t in rounds))
         del o, d
 
         # 2c. Per-task overhead: one ray per chunk, each chunk one `count` task and its share of
