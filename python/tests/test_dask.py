@@ -141,6 +141,27 @@ def test_local_scheduler_without_a_cluster():
     assert_same(got, bvh.intersect_all(o, d))
 
 
+def misaligned(block):
+    """The chunk as a C-ordered but misaligned, read-only view (what a deserialized chunk can be)."""
+    raw = np.frombuffer(b"\0" + block.tobytes(), np.uint8)[1:]
+    return raw.view(block.dtype).reshape(block.shape)
+
+
+def test_nan_empty_and_misaligned_chunks(client):
+    structure = scene()
+    o, d = random_rays(N, seed=17)[:2]
+    o[::5] = np.nan
+    d[3::7] = 0.0
+    want = structure.intersect(o, d)
+    odd = chunked(o).map_blocks(misaligned, dtype=o.dtype)
+    (got,) = dask.compute(hbv.dask.intersect(structure, odd, chunked(d)))
+    assert_same(got, want)
+    empty = np.zeros((0, 3))
+    for query in RAY_QUERIES:
+        (got,) = dask.compute(getattr(hbv.dask, query)(structure, da.from_array(empty), empty))
+        assert_same(got, getattr(structure, query)(empty, empty))
+
+
 def test_bad_arguments_fail_at_graph_build(client):
     bvh = STRUCTURES["bvh"]()
     o, d = random_rays(10)[:2]
@@ -188,11 +209,14 @@ def test_one_load_per_worker(client, tmp_path):
 def test_zarr_and_npy_round_trip(client, tmp_path):
     zarr = pytest.importorskip("zarr", reason="the Zarr round trip needs zarr")
     structure = scene()
+    structure.save(tmp_path / "scene.hbv")
+    opened = hbv.dask.open(tmp_path / "scene.hbv")
+    assert opened.kind == "scene"
     o, d = random_rays(N, seed=9)[:2]
     store = str(tmp_path / "rays.zarr")
     da.to_zarr(da.from_array(o, chunks=(100, 3)), store, component="origins")
     da.to_zarr(da.from_array(d, chunks=(100, 3)), store, component="directions")
-    hits = hbv.dask.intersect(structure, da.from_zarr(store, component="origins"),
+    hits = hbv.dask.intersect(opened, da.from_zarr(store, component="origins"),
                               da.from_zarr(store, component="directions").rechunk((250, 3)))
     out = str(tmp_path / "hits.zarr")
     dask.compute(*[da.to_zarr(hits[k], out, component=k, compute=False) for k in hits])
