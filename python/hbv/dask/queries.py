@@ -144,7 +144,7 @@ def _answer_chunk(*chunks, query, array_names, scalars, spec, payload, local, th
     """One chunk's answer (on a worker): the in-memory query with the process's cached copy of
     the structure; wrap: in a 1-element object array (the chunk of the answers layer)."""
     structure = payload if local else worker_cache.structure_for(spec, payload)
-    arrays = {name: ray_blocks.host_block(chunk) for name, chunk in zip(array_names, chunks)}
+    arrays = dict(zip(array_names, chunks))  # any layout: the compiled module copies if it must
     row_start = arrays.pop("row_start", None)
     positional = [arrays.pop(name) for name in ("origins", "directions", "points") if name in arrays]
     answer = getattr(structure, query)(*positional, threads=threads, **arrays, **scalars)

@@ -43,8 +43,3 @@ def per_ray(name: str, value, rows):
                          f"shape {array.shape}")
     return array.rechunk((rows,))
 
-
-def host_block(array: np.ndarray) -> np.ndarray:
-    """A chunk as the compiled module reads it in place: C-contiguous and aligned (a chunk
-    deserialized by Dask may be neither)."""
-    return np.require(array, requirements="CA")
