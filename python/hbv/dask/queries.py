@@ -90,7 +90,8 @@ def _prepare(query, structure, mask):
 
 def _build(query, handle, form, members, rows, arrays, per_ray, threads):
     """The chunk-answer layer and one dask array per member."""
-    if threads is not None and (not isinstance(threads, int) or threads < 1):
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int)
+                                or threads < 1):
         raise ValueError(f"threads: expected None or a positive int, got {threads!r}")
     names, inputs, scalars = [], [], {}
     for name, array in arrays.items():
@@ -118,17 +119,18 @@ def _build(query, handle, form, members, rows, arrays, per_ray, threads):
     )
     chunk_rows = tuple(float("nan") for _ in rows) if form == "ragged" else rows
     picked = {
-        name: _member(answers, name if form == "dict" else position, dtype, shape, chunk_rows, query)
-        for position, (name, dtype, shape) in enumerate(members)
+        member: _member(answers, member if form == "dict" else position, dtype, shape, chunk_rows,
+                        f"hbv-{query}-{member}-{token}")
+        for position, (member, dtype, shape) in enumerate(members)
     }
     return picked if form == "dict" else tuple(picked.values())
 
 
-def _member(answers, key, dtype, shape, rows, query):
-    label = str(key)
+def _member(answers, key, dtype, shape, rows, name):
+    """One member of the answers as a dask array: ``rows`` per chunk, then ``shape``."""
     return answers.map_blocks(
         _pick, key,
-        name=f"{answers.name}-{label}".replace(f"hbv-{query}-", f"hbv-{query}-{label}-", 1),
+        name=name,
         chunks=(rows, *[(size,) for size in shape]),
         new_axis=list(range(1, 1 + len(shape))) or None,
         dtype=dtype, meta=np.empty((0,) * (1 + len(shape)), dtype),
