@@ -13,7 +13,8 @@ side that computed them (hit count and sum of t), so no answer crosses a process
       (``ru_maxrss``) against its idle size + the structure's + 4 chunks;
    b. throughput: the rays persisted on the workers first, then ``intersect`` timed, in rounds
       interleaved with (1) (medians of --repeat; the ratio: the median of the rounds' ratios,
-      target >= 0.9x);
+      target >= 0.9x); and the rays per CPU second of each side (workers + client + scheduler
+      against the one process), which a machine shared with other work disturbs less;
    c. per-task overhead: ``count`` and a sum on --tiny-chunks chunks of one ray each;
       (wall x workers) / chunks.
 
@@ -60,6 +61,12 @@ def lazy_rays(lo, hi, n, chunk, seed):
                              meta=np.empty((0, 3), np.float32))
 
     return make(0), make(1)
+
+
+def cpu_seconds():
+    """User + system CPU seconds of this process, all its threads."""
+    times = os.times()
+    return times.user + times.system
 
 
 def worker_memory(reset_peak=False):
@@ -113,14 +120,14 @@ def main():
     bvh.intersect(*rays[0], threads=2)  # the layout is made on the first call
 
     def one_process():
-        """1. One process on 2 threads: (seconds, hits)."""
-        start = time.perf_counter()
+        """1. One process on 2 threads: (seconds, CPU seconds, hits)."""
+        start, cpu = time.perf_counter(), cpu_seconds()
         hits = t_sum = 0
         for o, d in rays:
             answer = bvh.intersect(o, d, threads=2)
             hits += int(answer["hit"].sum())
             t_sum += float(answer["t"].astype(np.float64)[answer["hit"]].sum())
-        return time.perf_counter() - start, hits
+        return time.perf_counter() - start, cpu_seconds() - cpu, hits
 
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                       dashboard_address=":0", memory_limit=0) as cluster, Client(cluster) as client:
@@ -157,22 +164,31 @@ def main():
         # 2b. Throughput, rays persisted on the workers, rounds interleaved with (1).
         o, d = dask.persist(*lazy_rays(lo, hi, n, chunk, args.seed))
         wait([o, d])
-        rounds = []
+        def cluster_cpu():
+            """CPU seconds of the workers and of this process (client and scheduler)."""
+            return sum(client.run(cpu_seconds).values()) + cpu_seconds()
+
+        rounds, cpu_rounds = [], []
         for _ in range(args.repeat):
-            alone, hits = one_process()
-            start = time.perf_counter()
+            alone, alone_cpu, hits = one_process()
+            start, cpu = time.perf_counter(), cluster_cpu()
             got = dask.compute(*reduced(o, d))
-            together = time.perf_counter() - start
+            together, together_cpu = time.perf_counter() - start, cluster_cpu() - cpu
             assert int(got[0]) == hits == int(streamed[0]), (got, hits, streamed)
             rounds.append((alone, together))
+            cpu_rounds.append((alone_cpu, together_cpu))
         alone = statistics.median(a for a, _ in rounds)
         together = statistics.median(t for _, t in rounds)
         ratio = statistics.median(a / t for a, t in rounds)
+        cpu_ratio = statistics.median(a / t for a, t in cpu_rounds)
         print(f"one process, 2 threads: {alone:.2f} s, {n / alone / 1e6:.2f} M rays/s ({hits:,} hits)")
         print(f"cluster 2 x 1 thread:   {together:.2f} s, {n / together / 1e6:.2f} M rays/s, "
               f"{ratio:.2f}x one process (median of {args.repeat} interleaved rounds)")
         print("rounds (one process s, cluster s, ratio): " + ", ".join(
             f"({a:.2f}, {t:.2f}, {a / t:.2f}x)" for a, t in rounds))
+        print(f"rays per CPU second, cluster (workers, client, scheduler) against one process: "
+              f"{cpu_ratio:.2f}x; rounds (CPU s): " + ", ".join(
+                  f"({a:.1f}, {t:.1f})" for a, t in cpu_rounds))
         del o, d
 
         # 2c. Per-task overhead: one ray per chunk, each chunk one `count` task and its share of
