@@ -38,11 +38,14 @@ def structure_for(spec, payload):
         data = payload if payload is not None else _read(spec.path)
         found = structure_bytes.checksum(data)
         if found != spec.checksum:
-            where = spec.path if spec.path is not None else "the scattered structure"
+            if spec.path is not None:
+                where, why = spec.path, "the file changed or differs between hosts"
+            else:
+                where, why = "the scattered structure", "its bytes were damaged on the way"
             raise StructureMismatchError(
                 f"{where} on worker host {socket.gethostname()}: checksum {found[:16]}… differs "
-                f"from the client's {spec.checksum[:16]}… (hbv.dask.open took it); the file "
-                f"changed or differs between hosts, refusing to answer with another structure"
+                f"from the client's {spec.checksum[:16]}…; {why}: refusing to answer with "
+                f"another structure"
             )
         structure = structure_bytes.from_bytes(spec.kind, data, spec.layout)
         _loaded[spec.checksum] = structure
