@@ -244,28 +244,46 @@ def slow_rays(block, block_id=None):
     return block
 
 
-def test_killed_worker_is_replaced_and_answers_are_the_same(client):
-    structure = scene()
-    o, d = random_rays(N, seed=13)[:2]
-    origins = chunked(o).rechunk((24, 3)).map_blocks(slow_rays, dtype=o.dtype)
-    lazy = hbv.dask.intersect(structure, origins, chunked(d))
-    pids = client.run(os.getpid)
-    victim, pid = sorted(pids.items())[0]
+def run_killing(client, lazy, victims):
+    """Computes ``lazy`` while SIGKILLing the worker processes ``victims`` ({address: pid}) once
+    their first task runs; waits for their replacements. Returns the answer."""
     future = client.compute(lazy)
     deadline = time.time() + 10
-    while not client.processing().get(victim) and time.time() < deadline:
+    while not all(client.processing().get(w) for w in victims) and time.time() < deadline:
         time.sleep(0.01)
     time.sleep(0.1)
     assert not future.done(), "the graph ended before the worker could be killed"
-    os.kill(pid, signal.SIGKILL)
+    for pid in victims.values():
+        os.kill(pid, signal.SIGKILL)
     got = future.result(timeout=60)
-    assert_same(got, structure.intersect(o, d))
     deadline = time.time() + 60  # the nanny starts a new process; the scheduler drops the old
     while True:
         now = client.run(os.getpid, on_error="ignore")
-        if len(now) == 2 and pid not in now.values():
-            break
-        assert time.time() < deadline, f"the killed worker was not replaced: {now}"
+        if len(now) == 2 and not set(victims.values()) & set(now.values()):
+            return got
+        assert time.time() < deadline, f"the killed workers were not replaced: {now}"
         time.sleep(0.2)
-    checksum = hbv.dask.share(structure).checksum
-    assert all(c.get(checksum, 1) == 1 for c in client.run(hbv.dask.load_counts).values())
+
+
+def slow_origins(o):
+    return chunked(o).rechunk((24, 3)).map_blocks(slow_rays, dtype=o.dtype)
+
+
+def test_killed_worker_is_replaced_and_answers_are_the_same(client):
+    structure = scene()
+    handle = hbv.dask.share(structure)
+    o, d = random_rays(N, seed=13)[:2]
+    lazy = hbv.dask.intersect(handle, slow_origins(o), chunked(d))
+    holders = client.who_has([handle.payload])[handle.payload.key]
+    victim = sorted(holders)[0]  # a worker holding the structure's bytes
+    got = run_killing(client, lazy, {victim: client.run(os.getpid)[victim]})
+    assert_same(got, structure.intersect(o, d))
+    assert all(c.get(handle.checksum, 1) == 1 for c in client.run(hbv.dask.load_counts).values())
+
+
+def test_every_worker_killed_the_structure_is_sent_again(client):
+    structure = hbv.Grid(hbv.Mesh(*soup(120, seed=31)))
+    o, d = random_rays(N, seed=14)[:2]
+    lazy = hbv.dask.count(structure, slow_origins(o), chunked(d))
+    got = run_killing(client, lazy, client.run(os.getpid))  # every copy of the bytes dies
+    assert_same(got, structure.count(o, d))

@@ -11,11 +11,11 @@
 
 Every query takes a ``BVH``, ``Grid``, ``Scene`` or a handle and returns dask arrays with the
 in-memory call's members and dtypes (``intersect_all``: a ragged tuple of flat arrays, see its
-doc). The structure travels once per worker, never per task: ``share`` scatters its bytes
-(``broadcast=True``), ``open`` names a ``.hbv`` file on shared storage; each worker process keeps
-one loaded copy per checksum (BLAKE2b of the bytes; ``load_counts`` through ``client.run``,
-``release`` frees it), and a worker whose file differs from the client's refuses
-(``StructureMismatchError``). ``threads``: threads per task (default 1: Dask runs one task per
+doc). The structure travels once per worker, never per task: ``share`` sends its bytes to every
+worker (recoverably: a lost copy is made again), ``open`` names a ``.hbv`` file on shared
+storage; each worker process keeps one loaded copy per checksum (BLAKE2b of the bytes;
+``load_counts`` through ``client.run``, ``release`` frees it), and a worker whose file differs
+from the client's refuses (``StructureMismatchError``). ``threads``: threads per task (default 1: Dask runs one task per
 worker thread). docs/DISTRIBUTED.md: real clusters, chunk sizes, costs.
 """
 

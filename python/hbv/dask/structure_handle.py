@@ -1,9 +1,10 @@
 """How a graph names its structure: a handle that travels once per worker, never per task.
 
-``share(structure)`` scatters the structure's bytes to every worker of the current Dask client
-(``broadcast=True``: each worker holds them once, a replacement worker fetches them from a peer);
+``share(structure)`` sends the structure's bytes to every worker of the current Dask client (as
+a task's result, which the scheduler can make again if the workers holding it die; a replacement
+worker fetches them from a peer);
 ``open(path)`` names a ``.hbv`` file every worker can read (shared storage) and takes its checksum
-on the client. Tasks carry only the small ``StructureSpec`` and the scattered bytes' future; each
+on the client. Tasks carry only the small ``StructureSpec`` and the shared bytes' future; each
 worker process loads one copy per checksum (``worker_cache``).
 """
 
@@ -18,7 +19,7 @@ from . import structure_bytes, worker_cache
 @dataclass(frozen=True)
 class StructureSpec:
     """What each task carries: kind (``"bvh"``, ``"grid"``, ``"scene"``), checksum (BLAKE2b of
-    the bytes), path (a shared ``.hbv`` file, or None when the bytes are scattered) and the BVH
+    the bytes), path (a shared ``.hbv`` file, or None when ``share`` sent the bytes) and the BVH
     layout to load with."""
 
     kind: str
@@ -30,7 +31,7 @@ class StructureSpec:
 class StructureHandle:
     """A structure as the workers see it; pass it wherever a BVH, Grid or Scene is taken.
 
-    ``payload`` is the scattered bytes' future (``share`` with a distributed client), the
+    ``payload`` is the future of the bytes (``share`` with a distributed client), the
     structure itself (``share`` without one: the threaded scheduler shares memory), or None
     (``open``: each worker reads ``spec.path``).
     """
@@ -49,17 +50,17 @@ class StructureHandle:
         return self.spec.checksum
 
     def __repr__(self) -> str:
-        source = self.spec.path or ("in memory" if self.local else "scattered")
+        source = self.spec.path or ("in memory" if self.local else "shared")
         return f"hbv.dask.StructureHandle({self.kind}, {source}, blake2b {self.checksum[:12]}…)"
 
 
-# Handles of structures already scattered, by (client id, checksum): the same structure passed
-# again is not scattered again.
+# Handles of structures already shared, by (client id, checksum): the same structure passed
+# again is not sent again.
 _shared: dict[tuple[str, str], StructureHandle] = {}
 
 
 def share(structure, client=None) -> StructureHandle:
-    """Sends a BVH, Grid or Scene to every worker once (its bytes, ``broadcast=True``).
+    """Sends a BVH, Grid or Scene's bytes to every worker once, recoverably (see below).
 
     client: a ``distributed.Client`` (default: the current one); False, or no client at all:
     the handle holds the structure itself, for Dask's local schedulers (threads, synchronous).
@@ -75,9 +76,27 @@ def share(structure, client=None) -> StructureHandle:
         return StructureHandle(spec, structure, local=True)
     key = (client.id, spec.checksum)
     if key not in _shared:
-        future = client.scatter(data, broadcast=True, hash=False)
-        _shared[key] = StructureHandle(spec, future)
+        _shared[key] = StructureHandle(spec, _recoverable_bytes(client, data, spec.checksum))
     return _shared[key]
+
+
+def _recoverable_bytes(client, data: bytes, checksum: str):
+    """The bytes as a task's result (the task holds them, the scheduler keeps the task), sent to
+    every worker. Unlike ``client.scatter``, whose data is lost for good when the workers holding
+    it die (the active memory manager keeps one replica between graphs), a lost result is made
+    again from the task: a killed worker never takes the structure with it."""
+    import warnings
+
+    with warnings.catch_warnings():
+        # The size warning is for graphs that carry data by accident; here it is the point.
+        warnings.filterwarnings("ignore", message=".*[Ll]arge.*")
+        future = client.submit(_the_bytes, data, key=f"hbv-structure-{checksum}", pure=False)
+    client.replicate([future])
+    return future
+
+
+def _the_bytes(data: bytes) -> bytes:
+    return data
 
 
 def open(path, layout: str | None = None) -> StructureHandle:  # noqa: A001 (hbv.dask.open)
@@ -93,7 +112,7 @@ def open(path, layout: str | None = None) -> StructureHandle:  # noqa: A001 (hbv
 
 def release(handle: StructureHandle, client=None) -> None:
     """Frees a structure on the cluster: every worker drops its loaded copy, the client its
-    scattered bytes (a later query loads or sends it again)."""
+    bytes (a later query loads or sends it again)."""
     if client is None:
         client = _current_client()
     if handle.local or client is None:

@@ -1,7 +1,7 @@
 """The process-wide cache of structures on a worker: one loaded copy per checksum.
 
 Every task that needs a structure asks ``structure_for``; the first one in the process loads it
-(from the scattered bytes, or from the shared file after checking its checksum against the one
+(from the bytes sent by `share`, or from the shared file after checking its checksum against the one
 the client took), every later one, of any graph, gets the same object. ``load_counts`` says how
 often each checksum was loaded in this process (1, unless ``drop`` dropped it), for
 ``client.run``.
@@ -27,7 +27,7 @@ class StructureMismatchError(ValueError):
 def structure_for(spec, payload):
     """The structure ``spec`` names, loaded at most once in this process.
 
-    spec: a ``StructureSpec`` (kind, checksum, path, layout); payload: the scattered bytes, or
+    spec: a ``StructureSpec`` (kind, checksum, path, layout); payload: the bytes sent by ``share``, or
     None when the structure is read from ``spec.path``. Raises ``StructureMismatchError`` when
     the bytes do not have the client's checksum: a worker never answers with another structure.
     """
@@ -41,7 +41,7 @@ def structure_for(spec, payload):
             if spec.path is not None:
                 where, why = spec.path, "the file changed or differs between hosts"
             else:
-                where, why = "the scattered structure", "its bytes were damaged on the way"
+                where, why = "the structure sent by share", "its bytes were damaged on the way"
             raise StructureMismatchError(
                 f"{where} on worker host {socket.gethostname()}: checksum {found[:16]}… differs "
                 f"from the client's {spec.checksum[:16]}…; {why}: refusing to answer with "
