@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # The project's test command: every Rust test, then the Python package built and installed into
 # a fresh virtual environment (target/py-test-venv) and its pytest suite (python/tests).
-# Needs the Rust toolchain and python3 (with venv); pytest, numpy, trimesh and rtree come from PyPI
-# (and open3d-cpu, for the Open3D parity tests, where it installs).
+# Needs the Rust toolchain and python3 (with venv); pytest, numpy, trimesh, rtree, dask[distributed]
+# and zarr come from PyPI (and open3d-cpu, for the Open3D parity tests, where it installs).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -20,7 +20,7 @@ echo "== pip install . into a fresh $VENV"
 rm -rf "$VENV"
 "$PYTHON" -m venv "$VENV"
 "$VENV/bin/python" -m pip install --quiet --upgrade pip
-"$VENV/bin/python" -m pip install --quiet pytest numpy trimesh rtree
+"$VENV/bin/python" -m pip install --quiet pytest numpy trimesh rtree "dask[distributed]" zarr
 "$VENV/bin/python" -m pip install --quiet open3d-cpu || echo "open3d-cpu did not install: its parity tests will skip"
 "$VENV/bin/python" -m pip install --quiet .
 

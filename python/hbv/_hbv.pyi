@@ -70,6 +70,25 @@ class Mesh:
 def load(path: Union[str, PathLike[str]]) -> Mesh:
     """Reads .obj, .ply, .gltf or .glb; OSError / ValueError naming file, place and reason."""
 
+def trimesh_hits(
+    index_ray: npt.NDArray[np.int64],
+    t: npt.NDArray[np.float32],
+    prim: npt.NDArray[np.int64],
+    origins: _Floats,
+    directions: _Floats,
+    size: float,
+    max_hits: Optional[int] = None,
+    vertices: Optional[npt.NDArray[np.float64]] = None,
+    faces: Optional[npt.NDArray[np.int64]] = None,
+    threads: Optional[int] = None,
+) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], Optional[npt.NDArray[np.float64]]]:
+    """hbv's hit list (``intersect_all``'s, or one hit a ray) in trimesh's Embree order: every
+    ray's first hit, then every ray's second, ..., at most ``max_hits`` a ray, a hit at the
+    place of the ray's previous one (within 2^-20 of distance + ``size``) left out. Returns
+    ``(index_tri, index_ray, locations)``; locations (H, 3) float64 where the ray meets the hit
+    triangle's plane, from ``vertices`` (V, 3) float64 and ``faces`` (F, 3) int64, when given
+    (else None). Indices out of range raise ValueError naming the argument and the row."""
+
 class BVH:
     """A bounding volume hierarchy over a mesh, answering ray and point queries.
 

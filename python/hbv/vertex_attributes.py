@@ -60,7 +60,9 @@ def interpolate(mesh: Any, attribute: Any, prim: Any, u: Any, v: Any) -> np.ndar
             f"prim: row {i}: {prim[i]} is not a triangle id of a mesh of {len(faces)} "
             "triangles (nor -1, a miss)"
         )
-    dtype = values.dtype if values.dtype in (np.float32, np.float64) else np.float64
+    # A float32 or float64 attribute keeps its precision, in either byte order.
+    native = values.dtype.newbyteorder("=")
+    dtype = native if native in (np.float32, np.float64) else np.float64
     miss = prim == -1
     if len(faces):
         corners = values[faces[np.where(miss, 0, prim)]].astype(dtype, copy=False)

@@ -9,44 +9,21 @@ use hbv::geometry::Triangle;
 use hbv::glam::Vec3;
 use hbv::scene::SceneHit;
 use hbv::{Hit, TriangleMesh};
-use ndarray::{Array1, Array2};
 
-use crate::npz_writer::NpzStream;
+use crate::hit_file_writer::{write_hit_file, HitFileKind};
 use crate::ray_file::{Archive, RayFileError};
 use hbv::atomic_file::{write_atomically, Replace};
 
 /// Writes closest hits to `path` atomically ([`write_atomically`], replacing a file only as
 /// `replace` says): members `hit` (bool), `t` (float32, +inf on a miss), `prim` (int64, -1 on a
 /// miss), `u` and `v` (float32, 0 on a miss), `instance` (int64, -1 on a miss), all (N,), and
-/// `normal` (float32, (N, 3), 0 on a miss).
+/// `normal` (float32, (N, 3), 0 on a miss). [`write_hit_file`] writes the same file a chunk at
+/// a time.
 pub fn write_hits(path: &Path, hits: &[Option<SceneHit>], replace: Replace) -> io::Result<()> {
-    let column = |f: fn(&SceneHit) -> f32, miss: f32| -> Array1<f32> {
-        hits.iter().map(|h| h.as_ref().map_or(miss, f)).collect()
-    };
-    let id = |f: fn(&SceneHit) -> u32| -> Array1<i64> {
-        hits.iter()
-            .map(|h| h.as_ref().map_or(-1, |h| i64::from(f(h))))
-            .collect()
-    };
-    let hit: Array1<bool> = hits.iter().map(Option::is_some).collect();
-    let t = column(|h| h.t, f32::INFINITY);
-    let prim = id(|h| h.prim);
-    let u = column(|h| h.u, 0.0);
-    let v = column(|h| h.v, 0.0);
-    let instance = id(|h| h.instance);
-    let normal = Array2::from_shape_fn((hits.len(), 3), |(i, axis)| {
-        hits[i].map_or(0.0, |h| h.normal[axis])
-    });
     write_atomically(path, replace, |file| {
-        let mut npz = NpzStream::new(file);
-        npz.add("hit", &hit)?;
-        npz.add("t", &t)?;
-        npz.add("prim", &prim)?;
-        npz.add("u", &u)?;
-        npz.add("v", &v)?;
-        npz.add("instance", &instance)?;
-        npz.add("normal", &normal)?;
-        npz.finish()
+        write_hit_file(file, HitFileKind::Closest, hits.len(), |w| {
+            w.write_hits(hits)
+        })
     })
 }
 
@@ -70,13 +47,13 @@ fn unit_normal(triangle: &Triangle) -> Vec3 {
     triangle.scaled_normal().normalize_or_zero().as_vec3()
 }
 
-/// Writes any-hit answers to `path` atomically, replacing a file only as `replace` says: member `occluded` (bool, (N,)).
+/// Writes any-hit answers to `path` atomically, replacing a file only as `replace` says:
+/// member `occluded` (bool, (N,)).
 pub fn write_occlusion(path: &Path, occluded: &[bool], replace: Replace) -> io::Result<()> {
-    let occluded = Array1::from(occluded.to_vec());
     write_atomically(path, replace, |file| {
-        let mut npz = NpzStream::new(file);
-        npz.add("occluded", &occluded)?;
-        npz.finish()
+        write_hit_file(file, HitFileKind::Occlusion, occluded.len(), |w| {
+            w.write_occluded(occluded)
+        })
     })
 }
 

@@ -11,7 +11,7 @@ use hbv::geometry::Ray;
 use ndarray::ArrayD;
 use ndarray_npy::{ReadNpyError, ReadNpyExt, ReadNpzError, ReadableElement};
 use zip::result::ZipError;
-use zip::ZipArchive;
+use zip::{CompressionMethod, ZipArchive};
 
 use crate::npy_header::read_npy_header;
 use crate::npz_writer::NpzStream;
@@ -26,7 +26,7 @@ pub struct RayFileError {
 }
 
 #[derive(Debug)]
-enum Reason {
+pub(crate) enum Reason {
     Open(io::Error),
     NotNpz(ReadNpzError),
     Missing {
@@ -50,6 +50,15 @@ enum Reason {
 }
 
 impl RayFileError {
+    /// An error about `path`, and about its `member` where one is given.
+    pub(crate) fn new(path: &Path, member: Option<&str>, reason: Reason) -> Self {
+        Self {
+            path: path.to_owned(),
+            member: member.map(str::to_owned),
+            reason,
+        }
+    }
+
     /// The file that could not be read.
     pub fn path(&self) -> &Path {
         &self.path
@@ -104,7 +113,6 @@ impl fmt::Display for RayFileError {
 /// reports that print the chain (anyhow's `{:#}`) would repeat it.
 impl std::error::Error for RayFileError {}
 
-/// A shape as NumPy prints it: `(5,)`, `(5, 3)`, `()`.
 /// Why an archive member's bytes could not be read.
 #[derive(Debug)]
 enum MemberProblem {
@@ -158,7 +166,8 @@ fn read_declared(
     Ok(())
 }
 
-fn shape_str(shape: &[usize]) -> String {
+/// A shape as NumPy prints it: `(5,)`, `(5, 3)`, `()`.
+pub(crate) fn shape_str(shape: &[usize]) -> String {
     match shape {
         [n] => format!("({n},)"),
         _ => {
@@ -170,7 +179,7 @@ fn shape_str(shape: &[usize]) -> String {
 
 /// A NumPy dtype descriptor, as the `.npy` header spells it (`'<i4'`), with its name where it is
 /// a common one: `int32 ('<i4')`.
-fn dtype_str(descr: String) -> String {
+pub(crate) fn dtype_str(descr: String) -> String {
     let code = descr
         .trim_matches('\'')
         .trim_start_matches(['<', '>', '|', '=']);
@@ -191,6 +200,20 @@ fn dtype_str(descr: String) -> String {
         _ => return descr,
     };
     format!("{name} ({descr})")
+}
+
+/// Where an archive member's bytes lie in the file.
+pub(crate) struct MemberPlace {
+    /// Deflated (`numpy.savez_compressed`), else stored (`numpy.savez`).
+    pub(crate) deflated: bool,
+    /// Offset of the member's first stored byte in the file.
+    pub(crate) data_start: u64,
+    /// Bytes it takes in the file.
+    pub(crate) stored_size: u64,
+    /// Bytes it holds uncompressed, as the archive declares.
+    pub(crate) size: u64,
+    /// CRC-32 of the uncompressed bytes, as the archive declares.
+    pub(crate) crc32: u32,
 }
 
 /// Anything an archive can be read from: a file, or bytes in memory.
@@ -256,18 +279,22 @@ impl Archive {
         })
     }
 
-    /// The bytes of member `name` (stored as `name`, else as `name.npy`, as NumPy looks it up).
-    fn member_bytes(&mut self, name: &str) -> Result<Vec<u8>, RayFileError> {
-        let suffixed = format!("{name}.npy");
-        let stored = if self.stored.iter().any(|n| n == name) {
-            name
+    /// The name member `name` is stored under: `name`, else `name.npy`, as NumPy looks it up.
+    fn stored_name(&self, name: &str) -> String {
+        if self.stored.iter().any(|n| n == name) {
+            name.to_owned()
         } else {
-            suffixed.as_str()
-        };
+            format!("{name}.npy")
+        }
+    }
+
+    /// The bytes of member `name`.
+    fn member_bytes(&mut self, name: &str) -> Result<Vec<u8>, RayFileError> {
+        let stored = self.stored_name(name);
         let mut bytes = Vec::new();
         let read = self
             .zip
-            .by_name(stored)
+            .by_name(&stored)
             .map_err(|e| MemberProblem::Unreadable(io::Error::other(e)))
             .and_then(|member| read_declared(member.size(), member, &mut bytes));
         match read {
@@ -276,7 +303,45 @@ impl Archive {
         }
     }
 
-    fn error(&self, member: &str, reason: Reason) -> RayFileError {
+    /// Where member `name` lies in the file, for reading it in place ([`MemberPlace`]).
+    pub(crate) fn locate(&mut self, name: &str) -> Result<MemberPlace, RayFileError> {
+        if !self.has(name) {
+            return Err(self.missing(name));
+        }
+        let stored = self.stored_name(name);
+        let place = match self.zip.by_name(&stored) {
+            Ok(member) if member.encrypted() => Err("it is encrypted".to_owned()),
+            Ok(member) => match member.compression() {
+                method @ (CompressionMethod::Stored | CompressionMethod::Deflated) => {
+                    Ok(MemberPlace {
+                        deflated: method == CompressionMethod::Deflated,
+                        data_start: member.data_start(),
+                        stored_size: member.compressed_size(),
+                        // A stored member is the bytes it takes, whatever size the
+                        // archive declares uncompressed (as the zip crate reads it).
+                        size: if method == CompressionMethod::Stored {
+                            member.compressed_size()
+                        } else {
+                            member.size()
+                        },
+                        crc32: member.crc32(),
+                    })
+                }
+                method => Err(format!(
+                    "compression method {method} is not supported (stored and deflated are)"
+                )),
+            },
+            Err(e) => Err(format!("cannot read: {e}")),
+        };
+        place.map_err(|why| self.error(name, Reason::Invalid(why)))
+    }
+
+    /// The file the archive was opened from.
+    pub(crate) fn path(&self) -> &Path {
+        &self.path
+    }
+
+    pub(crate) fn error(&self, member: &str, reason: Reason) -> RayFileError {
         RayFileError {
             path: self.path.clone(),
             member: Some(member.to_owned()),
@@ -290,7 +355,7 @@ impl Archive {
     }
 
     /// The error for a required member that is absent.
-    fn missing(&self, name: &str) -> RayFileError {
+    pub(crate) fn missing(&self, name: &str) -> RayFileError {
         self.error(
             name,
             Reason::Missing {
@@ -471,21 +536,24 @@ pub fn read_rays_from(
     rays_of(Archive::from_reader(name, reader)?)
 }
 
+/// The member holding the directions: `directions`, else its alias `dirs`.
+pub(crate) fn directions_name(npz: &Archive) -> Result<&'static str, RayFileError> {
+    match (npz.has("directions"), npz.has("dirs")) {
+        (true, _) => Ok("directions"),
+        (false, true) => Ok("dirs"),
+        (false, false) => Err(npz.error(
+            "directions",
+            Reason::Missing {
+                alias: Some("dirs"),
+                present: npz.names.clone(),
+            },
+        )),
+    }
+}
+
 fn rays_of(mut npz: Archive) -> Result<Vec<Ray>, RayFileError> {
     let (origins, n) = read_rows(&mut npz, "origins", Some(3))?;
-    let dir_name = match (npz.has("directions"), npz.has("dirs")) {
-        (true, _) => "directions",
-        (false, true) => "dirs",
-        (false, false) => {
-            return Err(npz.error(
-                "directions",
-                Reason::Missing {
-                    alias: Some("dirs"),
-                    present: npz.names.clone(),
-                },
-            ))
-        }
-    };
+    let dir_name = directions_name(&npz)?;
     let (directions, nd) = read_rows(&mut npz, dir_name, Some(3))?;
     npz.same_length(dir_name, nd, "origins", n)?;
     let mut bound = |name: &str| -> Result<Option<Vec<f32>>, RayFileError> {

@@ -1,31 +1,96 @@
-//! NumPy arguments: checked for shape and dtype with errors that name the argument, read in
-//! place when they are C-contiguous float32 or float64, converted otherwise (strided, integer).
+//! NumPy arguments: checked for shape and dtype with errors that name the argument, and read
+//! through one door, [`ArrayValues`]: in place when the array is aligned, C-contiguous and of
+//! the element type in native byte order, as NumPy's copy otherwise (misaligned, as a
+//! deserialized Dask chunk can be; strided, Fortran-ordered, reversed; byte-swapped; integer).
 
 use hbv::glam::{DVec3, Vec3};
 use numpy::{
-    PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
+    Element, PyArrayDescrMethods, PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArray,
     PyUntypedArrayMethods,
 };
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict};
 
-/// The values of a float argument: the caller's float32 or float64 array, borrowed, or a copy
-/// in the same precision (float64 for integers).
+/// The values of an argument array as one slice of `T`, in C order: the only way this module
+/// reads the memory of an array it is handed.
+///
+/// Read in place (a view of the caller's data) when the array is aligned, C-contiguous and of
+/// `T`'s dtype in native byte order; otherwise NumPy copies it (`astype(T, order="C")`, whose
+/// result is aligned and C-contiguous). A slice of `T` must be aligned to `T`, so a misaligned
+/// array (`np.frombuffer(buf, np.float32, offset=1)`) can only be read in place element by
+/// element; a copy is a few ns a ray, against a query's tens to hundreds.
+pub struct ArrayValues<'py, T: Element> {
+    array: PyReadonlyArrayDyn<'py, T>,
+}
+
+impl<'py, T: Element> ArrayValues<'py, T> {
+    /// Reads `array` as `T`. The caller chose `T` so that the conversion keeps the values it
+    /// promises (float32 from any float32, integers and other floats as float64, indices as
+    /// int64 or uint64); NumPy casts as `astype` does.
+    pub fn read(name: &str, array: &Bound<'py, PyUntypedArray>) -> PyResult<Self> {
+        let py = array.py();
+        let in_place =
+            array.is_aligned() && array.is_c_contiguous() && array.cast::<PyArrayDyn<T>>().is_ok();
+        let readable = if in_place {
+            // A view of its own, which no other code holds: its shape, strides and flags
+            // cannot be changed between this check and the read.
+            array.call_method0(pyo3::intern!(py, "view"))?
+        } else {
+            let order = PyDict::new(py);
+            order.set_item("order", "C")?;
+            array.call_method(
+                pyo3::intern!(py, "astype"),
+                (numpy::dtype::<T>(py),),
+                Some(&order),
+            )?
+        };
+        let refused = |why: String| PyValueError::new_err(format!("{name}: {why}"));
+        let readable = readable.cast_into::<PyArrayDyn<T>>().map_err(|e| {
+            refused(format!(
+                "cannot be read as {}: {e}",
+                std::any::type_name::<T>()
+            ))
+        })?;
+        // The callers checked `array`'s shape; an ndarray subclass's own `view` or `astype`
+        // could answer another.
+        if readable.shape() != array.shape() {
+            return Err(refused(format!(
+                "its view or copy has shape {}, not its own {}",
+                shape_text(readable.shape()),
+                shape_text(array.shape())
+            )));
+        }
+        let array = readable
+            .try_readonly()
+            .map_err(|e| refused(format!("cannot be read: {e}")))?;
+        if let Err(e) = array.as_slice() {
+            return Err(refused(format!("cannot be read as one slice: {e}")));
+        }
+        Ok(Self { array })
+    }
+
+    /// The values, in C order.
+    pub fn as_slice(&self) -> &[T] {
+        self.array
+            .as_slice()
+            .expect("ArrayValues::read checked a view that no other code can change")
+    }
+}
+
+/// The values of a float argument, in the caller's precision: float32, or float64 (also for
+/// integers and the other floats).
 pub enum Floats<'py> {
-    Borrowed(PyReadonlyArrayDyn<'py, f32>),
-    BorrowedF64(PyReadonlyArrayDyn<'py, f64>),
-    Owned(Vec<f32>),
-    OwnedF64(Vec<f64>),
+    F32(ArrayValues<'py, f32>),
+    F64(ArrayValues<'py, f64>),
 }
 
 impl Floats<'_> {
     /// The values as the query loops read them (no GIL needed).
     pub fn values(&self) -> FloatSlice<'_> {
         match self {
-            Floats::Borrowed(a) => FloatSlice::F32(a.as_slice().expect("checked contiguous")),
-            Floats::BorrowedF64(a) => FloatSlice::F64(a.as_slice().expect("checked contiguous")),
-            Floats::Owned(v) => FloatSlice::F32(v),
-            Floats::OwnedF64(v) => FloatSlice::F64(v),
+            Floats::F32(a) => FloatSlice::F32(a.as_slice()),
+            Floats::F64(a) => FloatSlice::F64(a.as_slice()),
         }
     }
 }
@@ -138,8 +203,8 @@ pub fn shape_text(shape: &[usize]) -> String {
 }
 
 /// Reads a float array of shape `(N, 3)` (or `(N,)` with `columns = None`); `rows` fixes N.
-/// C-contiguous float32 and float64 arrays are borrowed; strided ones are copied in their own
-/// precision; integer arrays (and lists of them) and other floats (float16, byte-swapped, long
+/// Float32 arrays are read as float32 and float64 ones as float64, in place where
+/// [`ArrayValues`] can; integer arrays (and lists of them) and the other floats (float16, long
 /// double) as float64.
 pub fn float_array<'py>(
     name: &str,
@@ -173,38 +238,17 @@ pub fn float_array<'py>(
         }
     }
     let dtype = array.dtype();
-    // Integers (as from a Python list of ints) are converted like float64, and so are the
-    // floats read in neither native float32 nor float64: float16 and byte-swapped floats
-    // (`np.fromfile(f, ">f8")`) exactly, long double rounded to float64.
-    let native = array.cast::<PyArrayDyn<f32>>().is_ok() || array.cast::<PyArrayDyn<f64>>().is_ok();
-    let array = if dtype.kind() == b'i' || dtype.kind() == b'u' || (dtype.kind() == b'f' && !native)
-    {
-        array
-            .call_method1("astype", ("float64",))?
-            .cast::<PyUntypedArray>()?
-            .clone()
-    } else {
-        array
-    };
-    let floats = if let Ok(a) = array.cast::<PyArrayDyn<f32>>() {
-        let a = a.readonly();
-        if a.is_c_contiguous() {
-            Floats::Borrowed(a)
-        } else {
-            Floats::Owned(a.as_array().iter().copied().collect())
+    // Float32 in either byte order is read as float32; integers (as from a Python list of
+    // ints) and the other floats as float64: float16 and float64 exactly, long double rounded.
+    let floats = match (dtype.kind(), dtype.itemsize()) {
+        (b'f', 4) => Floats::F32(ArrayValues::read(name, &array)?),
+        (b'f', _) | (b'i', _) | (b'u', _) => Floats::F64(ArrayValues::read(name, &array)?),
+        _ => {
+            return Err(PyTypeError::new_err(format!(
+                "{name}: expected a float32 or float64 (or integer) array, got dtype {}",
+                dtype.str()?
+            )))
         }
-    } else if let Ok(a) = array.cast::<PyArrayDyn<f64>>() {
-        let a = a.readonly();
-        if a.is_c_contiguous() {
-            Floats::BorrowedF64(a)
-        } else {
-            Floats::OwnedF64(a.as_array().iter().copied().collect())
-        }
-    } else {
-        return Err(PyTypeError::new_err(format!(
-            "{name}: expected a float32 or float64 (or integer) array, got dtype {}",
-            dtype.str()?
-        )));
     };
     Ok((floats, n))
 }
@@ -254,14 +298,52 @@ pub fn integer_values(name: &str, array: &Bound<'_, PyUntypedArray>) -> PyResult
     }
     // Unsigned arrays as uint64 (an index above 2^63 read as int64 was shown negative).
     Ok(if dtype.kind() == b'u' {
-        let as_u64 = array.call_method1("astype", ("uint64",))?;
-        let values = as_u64.cast::<PyArrayDyn<u64>>()?.readonly();
-        values.as_array().iter().map(|&i| i128::from(i)).collect()
+        let values = ArrayValues::<u64>::read(name, array)?;
+        values.as_slice().iter().map(|&i| i128::from(i)).collect()
     } else {
-        let as_i64 = array.call_method1("astype", ("int64",))?;
-        let values = as_i64.cast::<PyArrayDyn<i64>>()?.readonly();
-        values.as_array().iter().map(|&i| i128::from(i)).collect()
+        let values = ArrayValues::<i64>::read(name, array)?;
+        values.as_slice().iter().map(|&i| i128::from(i)).collect()
     })
+}
+
+/// The bytes of a file handed over in memory: `bytes` (read in place) or anything NumPy reads as
+/// a one-axis array of single bytes (a `bytearray`, a `memoryview`, `np.frombuffer(buf,
+/// np.uint8, offset=1)`, a strided slice), through [`ArrayValues`].
+pub enum Bytes<'py> {
+    Python(Bound<'py, PyBytes>),
+    Array(ArrayValues<'py, u8>),
+}
+
+impl Bytes<'_> {
+    /// Reads `obj`, or a TypeError / ValueError naming the argument.
+    pub fn read<'py>(name: &str, obj: &Bound<'py, PyAny>) -> PyResult<Bytes<'py>> {
+        if let Ok(bytes) = obj.cast::<PyBytes>() {
+            return Ok(Bytes::Python(bytes.clone()));
+        }
+        let array = as_ndarray(name, obj)?;
+        let dtype = array.dtype();
+        if !(matches!(dtype.kind(), b'u' | b'i') && dtype.itemsize() == 1) {
+            return Err(PyTypeError::new_err(format!(
+                "{name}: expected bytes or an array of uint8, got {} of dtype {}",
+                type_name(obj),
+                dtype.str()?
+            )));
+        }
+        if array.ndim() != 1 {
+            return Err(PyValueError::new_err(format!(
+                "{name}: expected shape (N,), got {}",
+                shape_text(array.shape())
+            )));
+        }
+        Ok(Bytes::Array(ArrayValues::read(name, &array)?))
+    }
+
+    pub fn as_slice(&self) -> &[u8] {
+        match self {
+            Bytes::Python(bytes) => bytes.as_bytes(),
+            Bytes::Array(array) => array.as_slice(),
+        }
+    }
 }
 
 /// A ray interval bound: one value for every ray, or one per ray.
@@ -283,8 +365,12 @@ pub fn interval_bound<'py>(
     if obj.is_none() {
         return Ok(IntervalBound::Scalar(default));
     }
-    if let Ok(x) = obj.extract::<f64>() {
-        return Ok(IntervalBound::Scalar(x as f32));
+    // An array of one value is an array, not a number (NumPy deprecated reading it as one).
+    let is_array = obj.cast::<PyUntypedArray>().is_ok_and(|a| a.ndim() > 0);
+    if !is_array {
+        if let Ok(x) = obj.extract::<f64>() {
+            return Ok(IntervalBound::Scalar(x as f32));
+        }
     }
     if obj.is_instance_of::<pyo3::types::PyString>() || obj.is_instance_of::<pyo3::types::PyBytes>()
     {

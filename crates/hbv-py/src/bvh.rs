@@ -369,7 +369,7 @@ impl PyBvh {
             .cast_into::<PyArray1<f64>>()?;
         let inside = self.contains(py, points, threads)?;
         {
-            let (inside, mut signed) = (inside.readonly(), distance.readwrite());
+            let (inside, mut signed) = (inside.try_readonly()?, distance.try_readwrite()?);
             for (d, &inside) in signed.as_slice_mut()?.iter_mut().zip(inside.as_slice()?) {
                 if inside {
                     *d = -*d;

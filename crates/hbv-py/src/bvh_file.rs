@@ -13,6 +13,7 @@ use pyo3::exceptions::{
 };
 use pyo3::prelude::*;
 
+use crate::arrays::Bytes;
 use crate::build_options::BuildOptions;
 use crate::bvh::PyBvh;
 use crate::mesh::PyMesh;
@@ -97,10 +98,16 @@ pub fn load_bvh(py: Python<'_>, path: PathBuf, layout: Option<&str>) -> PyResult
     from_loaded(py, loaded, layout)
 }
 
-/// Unpickling of a loaded BVH: the `.hbv` file's bytes.
+/// Unpickling of a loaded BVH: the `.hbv` file's bytes (`bytes`, or a uint8 array).
 #[pyfunction]
 #[pyo3(signature = (data, layout=None))]
-pub fn _bvh_from_bytes(py: Python<'_>, data: &[u8], layout: Option<&str>) -> PyResult<PyBvh> {
+pub fn _bvh_from_bytes(
+    py: Python<'_>,
+    data: &Bound<'_, PyAny>,
+    layout: Option<&str>,
+) -> PyResult<PyBvh> {
+    let data = Bytes::read("data", data)?;
+    let data = data.as_slice();
     let loaded = py.detach(|| BvhFile::from_bytes(data, Path::new("<pickled hbv.BVH>")));
     from_loaded(py, loaded, layout)
 }

@@ -17,6 +17,7 @@ mod grid;
 mod masks;
 mod mesh;
 mod output_column;
+mod plane_locations;
 mod ray_queries;
 mod scene;
 mod scene_arguments;
@@ -34,6 +35,7 @@ fn _hbv(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(bvh_file::load_bvh, m)?)?;
     m.add_function(wrap_pyfunction!(bvh_file::_bvh_from_bytes, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::load, m)?)?;
+    m.add_function(wrap_pyfunction!(plane_locations::trimesh_hits, m)?)?;
     m.add_function(wrap_pyfunction!(scene_file::load_scene, m)?)?;
     m.add_function(wrap_pyfunction!(scene_file::_scene_from_bytes, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

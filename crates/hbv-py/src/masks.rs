@@ -3,19 +3,19 @@
 //! whose own mask is not zero.
 
 use hbv::scene::SceneRay;
-use numpy::{PyArray1, PyArrayMethods, PyReadonlyArray1, PyUntypedArrayMethods};
+use numpy::{PyArrayDescrMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyInt};
 
-use crate::arrays::{as_ndarray, integer_values, shape_text, type_name};
+use crate::arrays::{as_ndarray, integer_values, shape_text, type_name, ArrayValues};
 
-/// One mask for every row, or one per row: the caller's uint32 array borrowed, or a copy of
-/// another integer array's values.
+/// One mask for every row, or one per row: an unsigned array of at most 32 bits read as uint32
+/// (in place where it can be), or the checked values of another integer array.
 pub enum Masks<'py> {
     Every(u32),
-    Borrowed(PyReadonlyArray1<'py, u32>),
-    Owned(Vec<u32>),
+    Unsigned(ArrayValues<'py, u32>),
+    Checked(Vec<u32>),
 }
 
 /// Masks as the query loops read them (no GIL needed).
@@ -29,8 +29,8 @@ impl Masks<'_> {
     pub fn as_slice(&self) -> MaskSlice<'_> {
         match self {
             Masks::Every(m) => MaskSlice::Every(*m),
-            Masks::Borrowed(a) => MaskSlice::PerRow(a.as_slice().expect("checked contiguous")),
-            Masks::Owned(v) => MaskSlice::PerRow(v),
+            Masks::Unsigned(a) => MaskSlice::PerRow(a.as_slice()),
+            Masks::Checked(v) => MaskSlice::PerRow(v),
         }
     }
 }
@@ -67,9 +67,9 @@ pub fn one_mask(name: &str, obj: Option<&Bound<'_, PyAny>>) -> PyResult<u32> {
 }
 
 /// The `mask` of a query of `rows` rays or points (`rows_of` names the argument that fixed
-/// the count): `None` (every bit), one integer for all rows, or an array of shape `(N,)` of
-/// uint32 (read in place when C-ordered) or another integer dtype (each value checked to fit
-/// 32 bits).
+/// the count): `None` (every bit), one integer (Python's or NumPy's) for all rows, or an array
+/// of shape `(N,)` of uint8 to uint32 (read as [`ArrayValues`]: uint32 in place where it can
+/// be) or another integer dtype (each value checked to fit 32 bits unsigned).
 pub fn row_masks<'py>(
     obj: Option<&Bound<'py, PyAny>>,
     rows: usize,
@@ -83,6 +83,10 @@ pub fn row_masks<'py>(
         return one_mask(NAME, Some(obj)).map(Masks::Every);
     }
     let array = as_ndarray(NAME, obj)?;
+    if array.ndim() == 0 {
+        // A NumPy integer (`np.uint32(3)`) is one mask, as a Python integer is.
+        return one_mask(NAME, Some(obj)).map(Masks::Every);
+    }
     let shape = array.shape().to_vec();
     if shape != [rows] {
         return Err(PyValueError::new_err(format!(
@@ -90,12 +94,9 @@ pub fn row_masks<'py>(
             shape_text(&shape)
         )));
     }
-    if let Ok(a) = array.cast::<PyArray1<u32>>() {
-        let a = a.readonly();
-        if a.is_c_contiguous() {
-            return Ok(Masks::Borrowed(a));
-        }
-        return Ok(Masks::Owned(a.as_array().iter().copied().collect()));
+    let dtype = array.dtype();
+    if dtype.kind() == b'u' && dtype.itemsize() <= 4 {
+        return ArrayValues::read(NAME, &array).map(Masks::Unsigned);
     }
     let values = integer_values(NAME, &array)?;
     values
@@ -109,5 +110,5 @@ pub fn row_masks<'py>(
             })
         })
         .collect::<PyResult<Vec<u32>>>()
-        .map(Masks::Owned)
+        .map(Masks::Checked)
 }

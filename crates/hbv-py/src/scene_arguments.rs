@@ -118,14 +118,16 @@ pub fn read_transform(obj: Option<&Bound<'_, PyAny>>) -> PyResult<InstanceTransf
     let Some(obj) = obj.filter(|o| !o.is_none()) else {
         return Ok(InstanceTransform::IDENTITY);
     };
-    let shape = as_ndarray(NAME, obj)?.shape().to_vec();
+    // Converted once: an object NumPy reads twice could answer two shapes.
+    let array = as_ndarray(NAME, obj)?;
+    let shape = array.shape().to_vec();
     if shape != [4, 4] && shape != [3, 4] {
         return Err(PyValueError::new_err(format!(
             "{NAME}: expected shape (4, 4) or (3, 4), got {}",
             shape_text(&shape)
         )));
     }
-    let (floats, rows) = float_array(NAME, obj, Some(4), None)?;
+    let (floats, rows) = float_array(NAME, array.as_any(), Some(4), None)?;
     let values: Vec<f64> = match floats.values() {
         FloatSlice::F32(v) => v.iter().map(|&x| f64::from(x)).collect(),
         FloatSlice::F64(v) => v.to_vec(),

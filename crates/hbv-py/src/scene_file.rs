@@ -16,6 +16,7 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBytes, PyTuple};
 
+use crate::arrays::Bytes;
 use crate::bvh_file::{load_error, replace_policy, save_error};
 use crate::mesh::mesh_error;
 use crate::scene::PyScene;
@@ -40,9 +41,11 @@ pub fn reduce<'py>(py: Python<'py>, scene: &Scene) -> PyResult<Bound<'py, PyTupl
     PyTuple::new(py, [from_bytes, args.into_any()])
 }
 
-/// Unpickling of a scene: the bytes of its `.hbv` scene file.
+/// Unpickling of a scene: the bytes of its `.hbv` scene file (`bytes`, or a uint8 array).
 #[pyfunction]
-pub fn _scene_from_bytes(py: Python<'_>, data: &[u8]) -> PyResult<PyScene> {
+pub fn _scene_from_bytes(py: Python<'_>, data: &Bound<'_, PyAny>) -> PyResult<PyScene> {
+    let data = Bytes::read("data", data)?;
+    let data = data.as_slice();
     let scene = py
         .detach(|| Scene::from_hbv_bytes(data, Path::new(PICKLED)))
         .map_err(load_error)?;

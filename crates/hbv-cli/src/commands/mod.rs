@@ -13,3 +13,4 @@ pub mod render;
 pub mod scene_bench;
 pub mod scene_info;
 pub mod trace;
+pub mod trace_progress;

@@ -1,12 +1,16 @@
 //! `hbv trace`: a ray file in, a hit file out (formats of `docs/RAYS.md`).
 
+use std::io;
 use std::path::PathBuf;
 use std::time::Instant;
 
 use anyhow::Context;
 use clap::Args;
+use hbv::atomic_file::write_atomically;
+use hbv_cli::hit_file;
+use hbv_cli::hit_file_writer::{write_hit_file, HitFileKind, HitFileWriter};
 use hbv_cli::output_check::replace_policy;
-use hbv_cli::{hit_file, ray_file};
+use hbv_cli::ray_stream::RayChunks;
 use serde_json::json;
 
 use hbv::geometry::Ray;
@@ -21,6 +25,7 @@ use super::build_args::{
 };
 use super::median::median;
 use super::name_values::layout_kind;
+use super::trace_progress::TraceProgress;
 use hbv::bvh::build::BuilderKind;
 use hbv::bvh::layout::{LayoutKind, LayoutOptions};
 
@@ -63,16 +68,23 @@ pub struct TraceArgs {
     /// Acceleration structure: a BVH (--builder, --layout) or a uniform grid.
     #[arg(long, value_enum, default_value_t = AccelName::Bvh)]
     pub accel: AccelName,
-    /// Trace the rays this many times and report the median time (the answers are the same
-    /// every time; the file holds one copy). The first run pays for cold caches and for the
-    /// first touch of the answers' pages, which later runs, like a peer's warmed-up calls in a
-    /// benchmark, do not.
+    /// Trace each chunk of rays this many times and report the median of the runs' total
+    /// times (the answers are the same every time; the file holds one copy). The first run
+    /// pays for cold caches and for the first touch of the answers' pages, which later runs,
+    /// like a peer's warmed-up calls in a benchmark, do not.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     pub repeat: u32,
+    /// Rays read, traced and written at a time: memory holds about 200 bytes per ray of a
+    /// chunk, whatever the size of the ray file (a larger chunk gives the threads longer runs).
+    #[arg(long, default_value_t = DEFAULT_CHUNK_RAYS, value_parser = clap::value_parser!(u64).range(1..))]
+    pub chunk_rays: u64,
     /// Print one JSON object of timings instead of text.
     #[arg(long)]
     pub json: bool,
 }
+
+/// Rays per chunk unless `--chunk-rays` says otherwise: about 200 MB of rays and answers.
+const DEFAULT_CHUNK_RAYS: u64 = 1 << 20;
 
 /// What is traced: a mesh's acceleration structure, or a scene of instances.
 enum Target {
@@ -122,47 +134,15 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         Some(source) => load_scene_target(args, source, &pool)?,
         None => build_mesh_target(args, &pool)?,
     };
-    let rays = ray_file::read_rays(&args.rays).context("cannot read rays")?;
-    // Scenes take rays with masks; ray files have none, so every ray sees every instance.
-    let scene_rays: Vec<SceneRay> = match target {
-        Target::Scene(_) => rays.iter().map(|&r| SceneRay::from(r)).collect(),
-        Target::Mesh { .. } => Vec::new(),
-    };
-
-    let trace = || {
-        let start = Instant::now();
-        let answers = pool.install(|| target.trace(&rays, &scene_rays, args));
-        (answers, start.elapsed().as_secs_f64())
-    };
-    let (answers, first_seconds) = trace();
-    let mut run_seconds = vec![first_seconds];
-    for _ in 1..args.repeat {
-        // The same answers each time: only the time is kept.
-        run_seconds.push(trace().1);
-    }
+    let ray_chunks = RayChunks::open(&args.rays).context("cannot read rays")?;
+    let ray_count = ray_chunks.len();
+    let Tally {
+        run_seconds,
+        hit_count,
+    } = trace_in_chunks(args, &target, &pool, ray_chunks)?;
     let trace_seconds = median(&run_seconds);
-    let hit_count = match answers {
-        Answers::Occluded(occluded) => {
-            hit_file::write_occlusion(&args.out, &occluded, replace_policy(args.force))
-                .context("cannot write hits")?;
-            occluded.iter().filter(|&&o| o).count()
-        }
-        Answers::MeshHits(hits) => {
-            let Target::Mesh { mesh, .. } = &target else {
-                unreachable!("mesh hits come from a mesh");
-            };
-            let hits: Vec<Option<SceneHit>> = pool.install(|| {
-                hits.par_iter()
-                    .with_min_len(RAYS_PER_TASK)
-                    .map(|h| h.as_ref().map(|h| hit_file::mesh_hit(mesh, h)))
-                    .collect()
-            });
-            write_hits(args, &hits)?
-        }
-        Answers::SceneHits(hits) => write_hits(args, &hits)?,
-    };
     let rays_per_second = if trace_seconds > 0.0 {
-        rays.len() as f64 / trace_seconds
+        ray_count as f64 / trace_seconds
     } else {
         0.0
     };
@@ -177,7 +157,8 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
             "query": if args.occluded { "occluded" } else { "closest" },
             "accel": traced.built,
             "threads": pool.current_num_threads(),
-            "rays": rays.len(),
+            "rays": ray_count,
+            "chunk_rays": args.chunk_rays,
             "hits": hit_count,
             "load_seconds": traced.load_seconds,
             "build_seconds": traced.build_seconds,
@@ -222,17 +203,69 @@ pub fn run(args: &TraceArgs) -> anyhow::Result<()> {
         } else {
             String::new()
         };
-        println!("trace     {trace_seconds:.3} s{runs}, {} rays ({query}), {hit_count} hit, {:.3} Mrays/s on {} threads", rays.len(), rays_per_second / 1e6, pool.current_num_threads());
+        println!("trace     {trace_seconds:.3} s{runs}, {} rays ({query}), {hit_count} hit, {:.3} Mrays/s on {} threads", ray_count, rays_per_second / 1e6, pool.current_num_threads());
         println!("wrote     {}", args.out.display());
     }
     Ok(())
 }
 
-/// Writes closest hits to `--out`; returns how many rays hit.
-fn write_hits(args: &TraceArgs, hits: &[Option<SceneHit>]) -> anyhow::Result<usize> {
-    hit_file::write_hits(&args.out, hits, replace_policy(args.force))
-        .context("cannot write hits")?;
-    Ok(hits.iter().filter(|h| h.is_some()).count())
+/// What a traced ray file came to.
+struct Tally {
+    /// Each repetition's time (`--repeat`), summed over the chunks.
+    run_seconds: Vec<f64>,
+    /// Rays that hit (or are occluded).
+    hit_count: usize,
+}
+
+/// Traces the rays of `ray_chunks` on `target` a chunk at a time (`--chunk-rays`) and writes
+/// the answers to `--out` as they come.
+///
+/// The hit file is laid out for every ray up front and filled chunk by chunk, through an
+/// atomic write: an error (a ray file that cannot be read on, a full disk) leaves no output,
+/// as the write removes its temporary file.
+fn trace_in_chunks(
+    args: &TraceArgs,
+    target: &Target,
+    pool: &ThreadPool,
+    mut ray_chunks: RayChunks,
+) -> anyhow::Result<Tally> {
+    let ray_count = ray_chunks.len();
+    let chunk_rays = usize::try_from(args.chunk_rays).unwrap_or(usize::MAX);
+    let kind = if args.occluded {
+        HitFileKind::Occlusion
+    } else {
+        HitFileKind::Closest
+    };
+    let progress = TraceProgress::new(ray_count as u64);
+    let mut tally = Tally {
+        run_seconds: vec![0.0; args.repeat as usize],
+        hit_count: 0,
+    };
+    let mut read_failure = None;
+    let written = write_atomically(&args.out, replace_policy(args.force), |file| {
+        write_hit_file(file, kind, ray_count, |writer| {
+            let mut rays = Vec::with_capacity(chunk_rays.min(ray_count));
+            loop {
+                match ray_chunks.read_next(chunk_rays, &mut rays) {
+                    Ok(0) => return Ok(()),
+                    Ok(_) => {}
+                    Err(e) => {
+                        read_failure = Some(e);
+                        return Err(io::Error::other("the rays could not be read"));
+                    }
+                }
+                let answers = target.trace_timed(&rays, args, pool, &mut tally.run_seconds);
+                tally.hit_count += answers.write(writer, target, pool)?;
+                progress.advance(rays.len() as u64, &tally.run_seconds);
+            }
+        })
+    });
+    progress.finish();
+    if let Some(e) = read_failure {
+        return Err(anyhow::Error::new(e).context("cannot read rays"));
+    }
+    written.context("cannot write hits")?;
+    Ok(tally)
 }
 
 /// Loads the mesh (or saved tree) of `--mesh` and builds the structure `--accel` names over it.
@@ -350,6 +383,65 @@ impl Target {
                 (false, true) => Answers::SceneHits(one_by_one(scene_rays, |r| scene.intersect(r))),
                 (false, false) => Answers::SceneHits(scene.intersect_batch(scene_rays)),
             },
+        }
+    }
+}
+
+impl Target {
+    /// The answers for one chunk of `rays`, traced `run_seconds.len()` times (`--repeat`),
+    /// each time added to its entry of `run_seconds`; the first run's answers are kept.
+    fn trace_timed(
+        &self,
+        rays: &[Ray],
+        args: &TraceArgs,
+        pool: &ThreadPool,
+        run_seconds: &mut [f64],
+    ) -> Answers {
+        // Scenes take rays with masks; ray files have none, so every ray sees every instance.
+        let scene_rays: Vec<SceneRay> = match self {
+            Target::Scene(_) => rays.iter().map(|&r| SceneRay::from(r)).collect(),
+            Target::Mesh { .. } => Vec::new(),
+        };
+        let mut kept = None;
+        for seconds in run_seconds.iter_mut() {
+            let start = Instant::now();
+            let answers = pool.install(|| self.trace(rays, &scene_rays, args));
+            *seconds += start.elapsed().as_secs_f64();
+            kept.get_or_insert(answers);
+        }
+        kept.expect("--repeat is at least 1")
+    }
+}
+
+impl Answers {
+    /// Writes the answers of one chunk to the hit file; returns how many rays hit.
+    fn write(
+        self,
+        writer: &mut HitFileWriter,
+        target: &Target,
+        pool: &ThreadPool,
+    ) -> io::Result<usize> {
+        match self {
+            Answers::Occluded(occluded) => {
+                writer.write_occluded(&occluded)?;
+                Ok(occluded.iter().filter(|&&o| o).count())
+            }
+            Answers::MeshHits(hits) => {
+                let Target::Mesh { mesh, .. } = target else {
+                    unreachable!("mesh hits come from a mesh");
+                };
+                let hits: Vec<Option<SceneHit>> = pool.install(|| {
+                    hits.par_iter()
+                        .with_min_len(RAYS_PER_TASK)
+                        .map(|h| h.as_ref().map(|h| hit_file::mesh_hit(mesh, h)))
+                        .collect()
+                });
+                Answers::SceneHits(hits).write(writer, target, pool)
+            }
+            Answers::SceneHits(hits) => {
+                writer.write_hits(&hits)?;
+                Ok(hits.iter().filter(|h| h.is_some()).count())
+            }
         }
     }
 }
