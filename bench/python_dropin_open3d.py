@@ -11,9 +11,10 @@ hbv call it wraps.
    directions (the native call at its cheapest), on the bunny and the dragon; python_compare's
    `random` rays.
 
-Each query is called once untimed (Open3D commits its scene, hbv makes its layouts and
-nearest-point tree on first use), then `--repeat` interleaved rounds; each time is the median
-of the rounds, each ratio the median of the rounds' ratios.
+Each query is called once untimed (Open3D commits its scene, hbv makes its layouts,
+nearest-point tree and inside grid on first use), then `--repeat` interleaved rounds, each timed
+call right after an untimed one of the same query; each time is the median of the rounds, each
+ratio the median of the rounds' ratios.
 
     ../py-bench-venv/bin/python bench/python_dropin_open3d.py [MESH.ply ...] [--points 100000]
         [--rays 1000000] [--repeat 5]
@@ -40,12 +41,19 @@ SCENES = pathlib.Path(__file__).resolve().parent.parent.parent / "shared/scenes"
 
 
 def rounds(calls, repeat):
-    """{name: [seconds of each round]}, after one untimed call of each."""
+    """{name: [seconds of each round]}, after one untimed call of each.
+
+    Each timed call follows an untimed call of the same query, as in python_compare's
+    `time_interleaved`: both libraries' thread pools are then awake, and neither call pays
+    for waking its workers after the other library's call, or for the other's workers still
+    spinning.
+    """
     for call in calls.values():
         call()
     seconds = {name: [] for name in calls}
     for _ in range(repeat):
         for name, call in calls.items():
+            call()
             start = time.perf_counter()
             call()
             seconds[name].append(time.perf_counter() - start)
