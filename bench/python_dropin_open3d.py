@@ -17,7 +17,7 @@ call right after an untimed one of the same query; each time is the median of th
 ratio the median of the rounds' ratios.
 
     ../py-bench-venv/bin/python bench/python_dropin_open3d.py [MESH.ply ...] [--points 100000]
-        [--rays 1000000] [--repeat 5]
+        [--rays 1000000] [--repeat 5] [--part inside|rays|both]
 """
 
 import argparse
@@ -119,9 +119,18 @@ def main():
     p.add_argument("--rays", type=int, default=1_000_000)
     p.add_argument("--repeat", type=int, default=5)
     p.add_argument("--seed", type=int, default=7)
+    p.add_argument("--part", choices=("inside", "rays", "both"), default="both",
+                   help="1. inside tests and signed distances, 2. the drop-in's cost, or both")
     args = p.parse_args()
     meshes = args.meshes or sorted(SCENES.glob("*.ply"), key=lambda m: m.stat().st_size)
     print(describe(machine()))
+    if args.part != "rays":
+        inside_table(meshes, args)
+    if args.part != "inside":
+        rays_table(meshes, args)
+
+
+def inside_table(meshes, args):
     print(f"\n{args.points:,} points; ms (median of {args.repeat} rounds); ratio: Open3D's time / hbv's")
     print("| mesh (triangles) | closed | signed distance: Open3D | hbv | × | occupancy: Open3D | hbv | × "
           "| points where Open3D's inside differs |")
@@ -136,6 +145,9 @@ def main():
             f"| {occupancy_differs:,} (sign {sign_differs:,}) |",
             flush=True,
         )
+
+
+def rays_table(meshes, args):
     print(f"\n{args.rays:,} rays, cast_rays against BVH.intersect; ms (median of {args.repeat} rounds)")
     print("| mesh (triangles) | native | drop-in | drop-in / native |")
     print("| --- | ---: | ---: | ---: |")

@@ -212,15 +212,10 @@ class RaycastingScene:
         return _high_words(answer["prim"]), primitive_ids
 
     def _rays(self, rays: Any) -> Tuple[np.ndarray, np.ndarray, Tuple[int, ...]]:
-        """Origins and directions, each a C-ordered (N, 3) float32 array copied out of the
-        rows (a NumPy copy costs less than the compiled module's read of a strided view)."""
+        """Origins and directions: the two halves of the (N, 6) float32 rows, views that the
+        compiled module reads in place (rows a stride of 6 apart), not copies."""
         flat, lead = _last_axis(rays, "rays", 6)
-        # Each half-row as one 12-byte item: one strided copy of N items, not of N rows of 3
-        # (1M rays: 17 ms instead of 24 on the 2-core Xeon VM).
-        halves = np.ascontiguousarray(flat).view(np.dtype((np.void, 12)))
-        origins = np.ascontiguousarray(halves[:, 0]).view(np.float32).reshape(-1, 3)
-        directions = np.ascontiguousarray(halves[:, 1]).view(np.float32).reshape(-1, 3)
-        return origins, directions, lead
+        return flat[:, :3], flat[:, 3:], lead
 
     def _run_threads(self, nthreads: Any) -> Optional[int]:
         return _threads(nthreads) if int(nthreads) else self._default_threads

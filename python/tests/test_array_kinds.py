@@ -1,7 +1,9 @@
 """Every kind of array NumPy can hand over gives every entry point the answers, bit for bit, of
 the plain array of the same values (C-ordered, aligned, native byte order, as NumPy reads it):
 misaligned (a deserialized Dask chunk), read-only, Fortran-ordered, reversed (negative
-strides), strided, misaligned and strided at once, byte-swapped, Python lists, and empty.
+strides), strided, misaligned and strided at once, byte-swapped, either half of the rows of an
+array twice as wide (`rays[:, :3]` and `rays[:, 3:]` of an (N, 6) array, which the ray and
+inside queries read in place), Python lists, and empty.
 Arrays that cannot be read are refused with a TypeError or ValueError naming the argument;
 nothing raises a PanicException."""
 
@@ -53,6 +55,20 @@ def _packed_field(a):
     return rows["x"]
 
 
+def _row_half(second):
+    """A 2-D array as the first or second half of each row of a C-ordered array twice as wide,
+    as `rays[:, :3]` and `rays[:, 3:]` of an (N, 6) array of rays; other arrays C-ordered."""
+    def make(a):
+        if a.ndim != 2:
+            return np.ascontiguousarray(a)
+        columns = a.shape[1]
+        wide = np.zeros((a.shape[0], 2 * columns), a.dtype)
+        half = wide[:, columns:] if second else wide[:, :columns]
+        half[...] = a
+        return half
+    return make
+
+
 def _byte_swapped(a):
     return a.astype(a.dtype.newbyteorder())
 
@@ -66,6 +82,8 @@ KINDS = {
     "strided": _strided,
     "packed_field": _packed_field,
     "byte_swapped": _byte_swapped,
+    "first_half_of_rows": _row_half(second=False),
+    "second_half_of_rows": _row_half(second=True),
     "misaligned_byte_swapped": lambda a: _misaligned(_byte_swapped(a)),
     "list": lambda a: a.tolist(),
 }

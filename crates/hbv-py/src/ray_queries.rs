@@ -12,7 +12,8 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use crate::arrays::{
-    float_array, interval_bound, BoundSlice, Coordinate, FloatSlice, Floats, IntervalBound,
+    float_rows, interval_bound, BoundSlice, Coordinate, FloatRowValues, FloatRows, FloatSlice,
+    IntervalBound, RowSlice,
 };
 use crate::mesh::PyMesh;
 use crate::output_column::OutputColumn;
@@ -20,8 +21,8 @@ use crate::thread_pool::{fill_rows, one_thread, run_on_threads, ThreadCount, GRA
 
 /// The ray arguments of a query, read and checked.
 pub struct RayArgs<'py> {
-    origins: Floats<'py>,
-    directions: Floats<'py>,
+    origins: FloatRowValues<'py>,
+    directions: FloatRowValues<'py>,
     tmin: IntervalBound<'py>,
     tmax: IntervalBound<'py>,
     len: usize,
@@ -30,8 +31,8 @@ pub struct RayArgs<'py> {
 /// The rays of a query as slices the worker threads read (no GIL needed).
 #[derive(Clone, Copy)]
 pub struct RayBatch<'a> {
-    origins: FloatSlice<'a>,
-    directions: FloatSlice<'a>,
+    origins: FloatRows<'a>,
+    directions: FloatRows<'a>,
     tmin: BoundSlice<'a>,
     tmax: BoundSlice<'a>,
     len: usize,
@@ -44,9 +45,9 @@ impl<'py> RayArgs<'py> {
         tmin: Option<&Bound<'py, PyAny>>,
         tmax: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Self> {
-        let (origins, len) = float_array("origins", origins, Some(3), None)?;
-        let (directions, _) =
-            float_array("directions", directions, Some(3), Some((len, "origins")))?;
+        // Read in place also as halves of an (N, 6) array of rays (`RowValues`).
+        let (origins, len) = float_rows("origins", origins, None)?;
+        let (directions, _) = float_rows("directions", directions, Some((len, "origins")))?;
         Ok(Self {
             origins,
             directions,
@@ -58,8 +59,8 @@ impl<'py> RayArgs<'py> {
 
     pub fn batch(&self) -> RayBatch<'_> {
         RayBatch {
-            origins: self.origins.values(),
-            directions: self.directions.values(),
+            origins: self.origins.rows(),
+            directions: self.directions.rows(),
             tmin: self.tmin.as_slice(),
             tmax: self.tmax.as_slice(),
             len: self.len,
@@ -85,19 +86,19 @@ impl RayBatch<'_> {
 
     /// Replaces `rays` with rays `range`: the arrays' dtypes, and whether each bound is one
     /// value for all rays, are matched once per run, not per ray, and the rows are read without
-    /// per-row bounds checks (a match per ray cost 3.5 ns of a camera ray's 29 on the teapot;
+    /// a row stride each (a match per ray cost 3.5 ns of a camera ray's 29 on the teapot;
     /// reading rows by index with both bounds matched per ray, 4% of a teapot camera ray's
     /// time from Python on a Zen 3 VM).
     fn rays_into(&self, range: std::ops::Range<usize>, rays: &mut Vec<Ray>) {
-        use FloatSlice::{F32, F64};
+        use FloatRows::{F32, F64};
         rays.clear();
-        let rows = 3 * range.start..3 * range.end;
         let (tmin, tmax) = (self.tmin.constant(0.0), self.tmax.constant(f32::INFINITY));
+        let rows = range.clone();
         match (self.origins, self.directions) {
-            (F32(o), F32(d)) => push_rays(&o[rows.clone()], &d[rows], tmin, tmax, rays),
-            (F32(o), F64(d)) => push_rays(&o[rows.clone()], &d[rows], tmin, tmax, rays),
-            (F64(o), F32(d)) => push_rays(&o[rows.clone()], &d[rows], tmin, tmax, rays),
-            (F64(o), F64(d)) => push_rays(&o[rows.clone()], &d[rows], tmin, tmax, rays),
+            (F32(o), F32(d)) => push_rays(o, d, rows, tmin, tmax, rays),
+            (F32(o), F64(d)) => push_rays(o, d, rows, tmin, tmax, rays),
+            (F64(o), F32(d)) => push_rays(o, d, rows, tmin, tmax, rays),
+            (F64(o), F64(d)) => push_rays(o, d, rows, tmin, tmax, rays),
         }
         if let BoundSlice::PerRay(values) = self.tmin {
             set_bounds(values, range.clone(), rays, |ray, x| ray.tmin = x);
@@ -116,25 +117,26 @@ impl RayBatch<'_> {
 
 impl<'a> RayBatch<'a> {
     /// The origins as given (float32 or float64).
-    pub fn origins(&self) -> FloatSlice<'a> {
+    pub fn origins(&self) -> FloatRows<'a> {
         self.origins
     }
 }
 
-/// Appends the rays of `origins` and `directions` (rows of three, as many of each) to `rays`,
-/// each with the interval `[tmin, tmax]`.
+/// Appends the rays of rows `rows` of `origins` and `directions` to `rays`, each with the
+/// interval `[tmin, tmax]`: row i's origin at `stride·i` of the origins, its direction at
+/// `stride·i` of the directions, each stride that of its own array.
 #[inline(always)]
 fn push_rays<O: Coordinate, D: Coordinate>(
-    origins: &[O],
-    directions: &[D],
+    origins: RowSlice<'_, O>,
+    directions: RowSlice<'_, D>,
+    rows: std::ops::Range<usize>,
     tmin: f32,
     tmax: f32,
     rays: &mut Vec<Ray>,
 ) {
-    let rows = origins.chunks_exact(3).zip(directions.chunks_exact(3));
-    rays.extend(rows.map(|(o, d)| Ray {
-        origin: O::row3(o, 0),
-        direction: D::row3(d, 0),
+    rays.extend(rows.map(|i| Ray {
+        origin: origins.row3(i),
+        direction: directions.row3(i),
         tmin,
         tmax,
     }));
@@ -405,9 +407,9 @@ pub fn inside<'py, 's, A: AllHits + ?Sized + 's>(
     points: &Bound<'py, PyAny>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-    let (points, rows) = float_array("points", points, Some(3), None)?;
+    let (points, rows) = float_rows("points", points, None)?;
     let closed = mesh.warn_if_open(py, "contains")?;
-    let points = points.values();
+    let points = points.rows();
     let mut result = vec![false; rows];
     py.detach(|| {
         let structure = structure();

@@ -11,7 +11,7 @@ use numpy::{IntoPyArray, PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use crate::arrays::FloatSlice;
+use crate::arrays::{FloatRows, FloatSlice};
 use crate::masks::MaskSlice;
 use crate::ray_queries::{HitCounter, RayBatch, RayTracer};
 use crate::thread_pool::{fill_rows, one_thread, run_here_or_on_threads, ThreadCount, SERIAL_ROWS};
@@ -23,7 +23,7 @@ pub struct SceneTracer<'a> {
     scene: &'a Scene,
     masks: MaskSlice<'a>,
     /// The rays' origins as given.
-    origins: FloatSlice<'a>,
+    origins: FloatRows<'a>,
 }
 
 impl<'a> SceneTracer<'a> {
@@ -40,8 +40,8 @@ impl<'a> SceneTracer<'a> {
     #[inline]
     fn ray(&self, row: usize, ray: &Ray) -> SceneRay {
         let scene_ray = match self.origins {
-            FloatSlice::F32(_) => SceneRay::new(*ray),
-            FloatSlice::F64(_) => {
+            FloatRows::F32(_) => SceneRay::new(*ray),
+            FloatRows::F64(_) => {
                 let origin = self.origins.row3_f64(row);
                 SceneRay::from_f64(origin, ray.direction.as_dvec3())
                     .with_interval(ray.tmin, ray.tmax)
