@@ -20,8 +20,8 @@ one geometry, and one ray's exact parity with several.
 
 One geometry is answered by an :class:`hbv.BVH`, several by an :class:`hbv.Scene` whose
 instance ids are the geometry ids; both are made on the first query after a geometry is added.
-Inside tests of one closed geometry go through a Scene of its BVH, whose inside grid answers
-repeated calls' points away from the surface without a ray (``hbv.Scene.contains``).
+Inside tests of a closed geometry answer repeated calls' points away from the surface without
+a ray, through the inside grid that ``hbv.BVH.contains`` and ``hbv.Scene.contains`` make.
 """
 
 from __future__ import annotations
@@ -149,8 +149,6 @@ class RaycastingScene:
         self._default_threads = _threads(nthreads)
         self._geometries: List[_Geometry] = []
         self._structure: Any = None
-        #: One closed geometry's inside tests: a Scene of its BVH (see `_inside_tests`).
-        self._inside_scene: Optional[Scene] = None
         #: Geometry j's triangle i has row ``_normal_offsets[j] + i`` of ``_normals``.
         self._normals = np.zeros((0, 3), np.float32)
         self._normal_offsets = np.zeros(1, np.int64)
@@ -175,7 +173,6 @@ class RaycastingScene:
             self._structure.add(geometry.mesh)
         else:
             self._structure = None
-        self._inside_scene = None
         return len(self._geometries) - 1
 
     def _answerer(self) -> Any:
@@ -189,18 +186,6 @@ class RaycastingScene:
                     scene.add(geometry.mesh)
                 self._structure = scene
         return self._structure
-
-    def _inside_tests(self) -> Any:
-        """What answers inside tests: the answerer, but for one closed geometry a Scene of its
-        BVH (its tree laid out again, not built again), whose inside grid answers the points
-        of repeated calls away from the surface without a ray (hbv.Scene.contains)."""
-        structure = self._answerer()
-        if isinstance(structure, BVH) and self._geometries[0].closed:
-            if self._inside_scene is None:
-                self._inside_scene = Scene()
-                self._inside_scene.add(structure)
-            return self._inside_scene
-        return structure
 
     def _ids(self, answer: Dict[str, np.ndarray]) -> Tuple[np.ndarray, np.ndarray]:
         """(geometry ids, primitive ids) as uint32, INVALID_ID where there is none."""
@@ -344,14 +329,8 @@ class RaycastingScene:
         sign is hbv's exact inside test; ``nsamples`` (odd, >= 1) is checked and not needed."""
         _check_samples(nsamples)
         points, lead = self._points(query_points)
-        threads = self._run_threads(nthreads)
-        structure, inside_tests = self._answerer(), self._inside_tests()
         with self._quiet_if_open():
-            if inside_tests is structure:
-                signed = structure.signed_distance(points, threads=threads)
-            else:
-                signed = structure.closest_point(points, threads=threads)["distance"]
-                np.negative(signed, out=signed, where=inside_tests.contains(points, threads=threads))
+            signed = self._answerer().signed_distance(points, threads=self._run_threads(nthreads))
         return _nan_where_not_finite(signed, points).reshape(lead)
 
     def compute_occupancy(self, query_points: Any, nthreads: int = 0, nsamples: int = 1) -> np.ndarray:
@@ -360,7 +339,7 @@ class RaycastingScene:
         _check_samples(nsamples)
         points, lead = self._points(query_points)
         with self._quiet_if_open():
-            inside = self._inside_tests().contains(points, threads=self._run_threads(nthreads))
+            inside = self._answerer().contains(points, threads=self._run_threads(nthreads))
         return inside.astype(np.float32).reshape(lead)
 
     def _quiet_if_open(self) -> Any:

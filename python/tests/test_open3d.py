@@ -282,6 +282,8 @@ def test_scene_inside_grid_answers_as_the_exact_test():
     own exact test, made again after the scene changes, and not used with a mask."""
     geometries = CLOSED_SETS["several"]()
     bvhs = [hbv.BVH(hbv.Mesh(v, f)) for v, f in geometries]
+    # The exact test: a Grid's contains, one ray's parity for every point (no inside grid).
+    exact_tests = [hbv.Grid(hbv.Mesh(v, f)) for v, f in geometries]
     scene = hbv.Scene()
     for bvh in bvhs:
         scene.add(bvh)
@@ -295,9 +297,9 @@ def test_scene_inside_grid_answers_as_the_exact_test():
 
     def exact(shift=(0.0, 0.0, 0.0)):
         inside = np.zeros(len(points), bool)
-        for k, bvh in enumerate(bvhs):
+        for k, grid in enumerate(exact_tests):
             moved = points - (np.asarray(shift) if k == 1 else 0)
-            inside |= bvh.contains(moved)
+            inside |= grid.contains(moved)
         return inside
 
     expected = exact()
@@ -310,8 +312,8 @@ def test_scene_inside_grid_answers_as_the_exact_test():
     for _ in range(2):
         np.testing.assert_array_equal(scene.contains(points), exact(shift))
     np.testing.assert_array_equal(scene.contains(points, mask=1), exact(shift))
-    # The drop-in's one closed geometry: a scene of its BVH answers its inside tests, points
-    # of surface cells by a segment to a known point. Points within rounding of the surface
+    # The drop-in's one closed geometry: its BVH answers its inside tests, with its own grid
+    # (test_bvh_inside_grid_answers_as_the_exact_test). Points within rounding of the surface
     # (1e-7 here) may be answered either way, by either test.
     one = scene_of(geometries[:1])
     points = points.astype(np.float32)
@@ -319,7 +321,70 @@ def test_scene_inside_grid_answers_as_the_exact_test():
     assert (~away).sum() > 500
     for _ in range(2):
         inside = one.compute_occupancy(points) == 1
-        np.testing.assert_array_equal(inside[away], bvhs[0].contains(points)[away])
+        np.testing.assert_array_equal(inside[away], exact_tests[0].contains(points)[away])
+
+
+def _points_near_surfaces(bvh, rng, n):
+    """`n` points in the box around a unit mesh, a tenth of them within 1e-7 of its surface and
+    a tenth 1e-4 from it (in the cells the surface touches)."""
+    points = rng.uniform(-1.6, 1.6, (n, 3))
+    tenth = n // 10
+    near = bvh.closest_point(points[: 2 * tenth])["point"]
+    points[:tenth] = near[:tenth] + rng.normal(scale=1e-7, size=(tenth, 3))
+    points[tenth : 2 * tenth] = near[tenth:] + rng.normal(scale=1e-4, size=(tenth, 3))
+    return points
+
+
+@pytest.mark.parametrize("calls", [1, 4])
+def test_bvh_inside_grid_answers_as_the_exact_test(calls):
+    """Past 32,768 points (one call of 40,000, or the fourth of 10,000 each), a BVH over a
+    closed mesh answers contains and signed_distance through its inside grid
+    (hbv::proximity::InsideCells): the answers of the exact test (a Grid's one ray a point),
+    on points in free cells, in surface cells and on the surface, float32 and float64, with any
+    threads; NaN and infinite points outside."""
+    v, f = lumpy_sphere(21)
+    bvh, exact = hbv.BVH(hbv.Mesh(v, f)), hbv.Grid(hbv.Mesh(v, f))
+    rng = np.random.default_rng(22)
+    points = _points_near_surfaces(bvh, rng, 40_000)
+    points[:3] = [[np.nan, 0, 0], [np.inf, 0, 0], [0, -np.inf, 0]]
+    expected = exact.contains(points)
+    assert 2_000 < expected.sum() < 38_000
+    # Within rounding of the surface (the 1e-7 points) a ray and a segment may differ, as any
+    # two rays may: "points on the surface may go either way" (BVH.contains).
+    off = ~(bvh.closest_point(points)["distance"] <= 1e-6)
+    assert off.sum() > 35_000
+    for part in np.array_split(np.arange(len(points)), calls):
+        got = bvh.contains(points[part])
+        np.testing.assert_array_equal(got[off[part]], expected[part][off[part]])
+    for dtype, threads in [(np.float64, None), (np.float32, 1), (np.float32, None)]:
+        given = points.astype(dtype)
+        got, want = bvh.contains(given, threads=threads), exact.contains(given)
+        np.testing.assert_array_equal(got[off], want[off])
+    signed = bvh.signed_distance(points)
+    np.testing.assert_array_equal((signed < 0)[off], expected[off])
+    assert np.all(signed[:3] == np.inf)
+    # Away from the surface, the float64 brute force agrees.
+    away = np.abs(signed) > 1e-4
+    away[:3] = False
+    check = np.flatnonzero(away)[:300]
+    np.testing.assert_array_equal(expected[check], brute_inside([(v, f)], points[check]))
+
+
+def test_bvh_inside_grid_is_not_made_for_open_or_empty_meshes():
+    """An open mesh keeps the majority of three rays past 32,768 points (with its warning), as
+    a Grid answers; a mesh of no triangles answers outside everywhere."""
+    v, f = lumpy_sphere(23)
+    v_open, f_open = v, f[1:]
+    bvh, exact = hbv.BVH(hbv.Mesh(v_open, f_open)), hbv.Grid(hbv.Mesh(v_open, f_open))
+    points = np.random.default_rng(24).uniform(-1.2, 1.2, (40_000, 3))
+    for _ in range(2):
+        with pytest.warns(RuntimeWarning, match="not closed"):
+            got = bvh.contains(points)
+        with pytest.warns(RuntimeWarning, match="not closed"):
+            np.testing.assert_array_equal(got, exact.contains(points))
+    empty = hbv.BVH(hbv.Mesh(np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int64)))
+    for _ in range(2):
+        assert not empty.contains(points).any()
 
 
 def test_leading_shapes_are_kept():

@@ -22,8 +22,10 @@ use crate::arrays::{float_array, FloatSlice};
 use crate::build_options::BuildOptions;
 use crate::bvh_file::{describe, save};
 use crate::mesh::PyMesh;
+use crate::mesh_inside::InsideCellsOnDemand;
 use crate::ray_queries::{
-    any_hits, closest_hits, every_hit, hit_counts, inside, MeshCounter, MeshTracer, RayArgs,
+    any_hits, closest_hits, every_hit, hit_counts, inside_with_cells, MeshCounter, MeshTracer,
+    RayArgs,
 };
 use crate::thread_pool::{one_thread, run_here_or_on_threads, ThreadCount};
 
@@ -68,6 +70,9 @@ pub struct PyBvh {
     /// The nearest-point queries: walks of `tree` at first, the search tree once it pays
     /// (`ClosestPointsOnDemand`).
     closest: ClosestPointsOnDemand,
+    /// The inside tests' grid on a closed mesh, once enough points have been asked
+    /// (`InsideCellsOnDemand`).
+    inside_cells: InsideCellsOnDemand,
     build_seconds: f64,
     /// The settings line saved with the tree (`hbv build`'s words), or read from its file.
     settings: String,
@@ -98,6 +103,7 @@ impl PyBvh {
             tree,
             accel: OnceLock::new(),
             wide: OnceLock::new(),
+            inside_cells: InsideCellsOnDemand::default(),
             build_seconds,
             settings,
         }
@@ -272,6 +278,12 @@ impl PyBvh {
     /// points on the surface may go either way. A RuntimeWarning when the mesh is not closed
     /// (`Mesh.open_edges` > 0): inside is then not defined near its open edges, and the
     /// majority of three rays' parities answers (steadier there than one ray).
+    ///
+    /// On a closed mesh, the call that brings the points asked (of `contains` and
+    /// `signed_distance`, all calls together) to 32,768 makes an inside grid
+    /// (hbv::proximity::InsideCells), and later points are answered through it: by a lookup in
+    /// the cells that no triangle touches, by a short segment to such a cell near the surface,
+    /// by the ray elsewhere. The answers are the same whichever answers them.
     #[pyo3(signature = (points, threads=None))]
     fn contains<'py>(
         &self,
@@ -279,7 +291,9 @@ impl PyBvh {
         points: &Bound<'py, PyAny>,
         threads: Option<ThreadCount>,
     ) -> PyResult<Bound<'py, PyArray1<bool>>> {
-        inside(py, self.mesh.get(), || &**self.wide(), points, threads)
+        let structure = || &**self.wide();
+        let cells = Some(&self.inside_cells);
+        inside_with_cells(py, self.mesh.get(), structure, cells, points, threads)
     }
 
     /// The nearest surface point to each point: a dict of arrays `point` (N, 3) float64,
@@ -354,7 +368,8 @@ impl PyBvh {
     /// code (trimesh's `signed_distance` has the opposite sign). Exact where `contains` is: on a
     /// closed mesh (`Mesh.is_closed`); otherwise `contains` warns, and the sign is the majority
     /// of three rays' parities. A point on the surface gets 0 (of either sign); a point without
-    /// a nearest point (not finite, or an empty mesh) +inf, as in `closest_point`.
+    /// a nearest point (not finite, or an empty mesh) +inf, as in `closest_point`. The inside
+    /// tests are `contains`', its inside grid included.
     #[pyo3(signature = (points, threads=None))]
     fn signed_distance<'py>(
         &self,

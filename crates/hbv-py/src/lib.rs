@@ -16,6 +16,7 @@ mod bvh_file;
 mod grid;
 mod masks;
 mod mesh;
+mod mesh_inside;
 mod output_column;
 mod plane_locations;
 mod ray_queries;

@@ -3,7 +3,7 @@
 //! [`HitCounter`] on all cores with the GIL released.
 
 use hbv::geometry::{Ray, Triangle};
-use hbv::proximity::{contains, contains_by_majority};
+use hbv::proximity::contains_by_majority;
 use hbv::query::Hit;
 use hbv::scene::SceneHit;
 use hbv::{Accelerator, AllHits, TriangleMesh};
@@ -16,6 +16,7 @@ use crate::arrays::{
     IntervalBound, RowSlice,
 };
 use crate::mesh::PyMesh;
+use crate::mesh_inside::{inside_closed, InsideCellsOnDemand};
 use crate::output_column::OutputColumn;
 use crate::thread_pool::{fill_rows, one_thread, run_on_threads, ThreadCount, GRAIN};
 
@@ -407,17 +408,34 @@ pub fn inside<'py, 's, A: AllHits + ?Sized + 's>(
     points: &Bound<'py, PyAny>,
     threads: Option<ThreadCount>,
 ) -> PyResult<Bound<'py, PyArray1<bool>>> {
+    inside_with_cells(py, mesh, structure, None, points, threads)
+}
+
+/// [`inside`], a closed mesh's points answered through `cells` (`mesh_inside.rs`) once it has
+/// made its grid: the same answers.
+pub fn inside_with_cells<'py, 's, A: AllHits + ?Sized + 's>(
+    py: Python<'py>,
+    mesh: &PyMesh,
+    structure: impl FnOnce() -> &'s A + Send,
+    cells: Option<&InsideCellsOnDemand>,
+    points: &Bound<'py, PyAny>,
+    threads: Option<ThreadCount>,
+) -> PyResult<Bound<'py, PyArray1<bool>>> {
     let (points, rows) = float_rows("points", points, None)?;
     let closed = mesh.warn_if_open(py, "contains")?;
     let points = points.rows();
     let mut result = vec![false; rows];
     py.detach(|| {
         let structure = structure();
+        let cells = cells
+            .filter(|_| closed)
+            .and_then(|c| c.cells(rows, &mesh.mesh, structure));
         fill_rows(threads, &mut result[..], |first, out| {
+            let mut hits = Vec::new();
             for (k, o) in out.iter_mut().enumerate() {
                 let point = points.row3(first + k);
                 *o = if closed {
-                    contains(structure, point)
+                    inside_closed(structure, cells, point, &mut hits)
                 } else {
                     contains_by_majority(structure, point)
                 };
