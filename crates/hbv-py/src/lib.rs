@@ -9,6 +9,7 @@
 use pyo3::prelude::*;
 
 mod allocator;
+mod array_rows;
 mod arrays;
 mod build_options;
 mod bvh;

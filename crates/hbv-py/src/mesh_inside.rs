@@ -41,7 +41,10 @@ impl InsideCellsOnDemand {
         if let Some(cells) = self.cells.get() {
             return cells.as_ref();
         }
-        let asked = self.asked.fetch_add(rows, Ordering::Relaxed).saturating_add(rows);
+        let asked = self
+            .asked
+            .fetch_add(rows, Ordering::Relaxed)
+            .saturating_add(rows);
         if asked < INSIDE_CELLS_AFTER_POINTS {
             return None;
         }

@@ -11,10 +11,8 @@ use numpy::{IntoPyArray, PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use crate::arrays::{
-    float_rows, interval_bound, BoundSlice, Coordinate, FloatRowValues, FloatRows, FloatSlice,
-    IntervalBound, RowSlice,
-};
+use crate::array_rows::{float_rows, FloatRowValues, FloatRows, RowSlice};
+use crate::arrays::{interval_bound, BoundSlice, Coordinate, FloatSlice, IntervalBound};
 use crate::mesh::PyMesh;
 use crate::mesh_inside::{inside_closed, InsideCellsOnDemand};
 use crate::output_column::OutputColumn;

@@ -11,7 +11,8 @@ use numpy::{IntoPyArray, PyArray1, PyArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
-use crate::arrays::{FloatRows, FloatSlice};
+use crate::array_rows::FloatRows;
+use crate::arrays::FloatSlice;
 use crate::masks::MaskSlice;
 use crate::ray_queries::{HitCounter, RayBatch, RayTracer};
 use crate::thread_pool::{fill_rows, one_thread, run_here_or_on_threads, ThreadCount, SERIAL_ROWS};
