@@ -2,8 +2,9 @@
 the plain array of the same values (C-ordered, aligned, native byte order, as NumPy reads it):
 misaligned (a deserialized Dask chunk), read-only, Fortran-ordered, reversed (negative
 strides), strided, misaligned and strided at once, byte-swapped, either half of the rows of an
-array twice as wide (`rays[:, :3]` and `rays[:, 3:]` of an (N, 6) array, which the ray and
-inside queries read in place), Python lists, and empty.
+array twice as wide (`rays[:, :3]` and `rays[:, 3:]` of an (N, 6) array) and every third row
+of a longer one (both of which the ray and inside queries read in place), rows that overlap or
+repeat, Python lists, and empty.
 Arrays that cannot be read are refused with a TypeError or ValueError naming the argument;
 nothing raises a PanicException."""
 
@@ -69,6 +70,16 @@ def _row_half(second):
     return make
 
 
+def _every_third_row(a):
+    """A 2-D array as every third row of a C-ordered array three times as long (rows nine
+    items apart, read in place); other arrays C-ordered."""
+    if a.ndim != 2:
+        return np.ascontiguousarray(a)
+    big = np.zeros((3 * a.shape[0],) + a.shape[1:], a.dtype)
+    big[::3] = a
+    return big[::3]
+
+
 def _byte_swapped(a):
     return a.astype(a.dtype.newbyteorder())
 
@@ -84,6 +95,7 @@ KINDS = {
     "byte_swapped": _byte_swapped,
     "first_half_of_rows": _row_half(second=False),
     "second_half_of_rows": _row_half(second=True),
+    "every_third_row": _every_third_row,
     "misaligned_byte_swapped": lambda a: _misaligned(_byte_swapped(a)),
     "list": lambda a: a.tolist(),
 }
@@ -359,6 +371,25 @@ def test_misaligned_float32_rays_of_a_dask_chunk():
     want = BVH.intersect(o.astype(np.float32), d.astype(np.float32))
     _assert_same_bits(BVH.intersect(origins, directions), want, "intersect")
     assert want["hit"].any()
+
+
+def test_rows_that_overlap_or_repeat_give_the_plain_answer():
+    """Rows one item apart (overlapping), zero items apart (`np.broadcast_to`, one origin for
+    every ray) and a single row with any stride: read as NumPy's copy, the plain answer."""
+    x = _inputs(50)
+    buffer = np.random.default_rng(3).uniform(-1.5, 1.5, 60)
+    one_origin = np.broadcast_to(x.o[0], x.o.shape)
+    shapes = {
+        "overlapping": np.lib.stride_tricks.as_strided(buffer, (50, 3), (8, 8), writeable=False),
+        "broadcast": one_origin,
+        "one_row": np.lib.stride_tricks.as_strided(buffer, (1, 3), (800, 8), writeable=False),
+    }
+    for name, origins in shapes.items():
+        directions = x.d[: len(origins)]
+        for query in (BVH.intersect, BVH.occluded, GRID.count, SCENE.intersect):
+            got, want = query(origins, directions), query(np.array(origins), directions)
+            _assert_same_bits(got, want, f"{query.__name__}, {name}")
+        _assert_same_bits(BVH.contains(origins), BVH.contains(np.array(origins)), name)
 
 
 def test_numpy_scalars_are_one_value_for_every_row():
