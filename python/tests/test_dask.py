@@ -79,9 +79,7 @@ def assert_same(got, want):
 
 
 def supported(kind, query):
-    if kind == "grid" and query in ("closest_point", "signed_distance"):
-        return False
-    return not (kind == "scene" and query == "signed_distance" and not hasattr(hbv.Scene, query))
+    return not (kind == "grid" and query in ("closest_point", "signed_distance"))
 
 
 @pytest.mark.parametrize("kind", list(STRUCTURES))

@@ -41,14 +41,11 @@ ANSWERS = {
 }
 
 
-def answer_of(query: str, kind: str, scene_has_signed_distance: bool):
+def answer_of(query: str, kind: str):
     """(form, members) of a query on a kind of structure; TypeError, at graph-build time, when
     that structure has no such query."""
     form, by_kind = ANSWERS[query]
-    supported = kind in by_kind and (
-        not (query == "signed_distance" and kind == "scene") or scene_has_signed_distance
-    )
-    if not supported:
+    if kind not in by_kind:
         names = {"bvh": "hbv.BVH", "grid": "hbv.Grid", "scene": "hbv.Scene"}
         hint = " (a grid has no distance-ordered search: use an hbv.BVH)" if kind == "grid" else ""
         raise TypeError(f"{query}: {names[kind]} has no {query}{hint}")

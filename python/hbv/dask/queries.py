@@ -11,7 +11,6 @@ import dask.array as da
 import numpy as np
 from dask.base import tokenize
 
-from .. import _hbv
 from . import ray_blocks, worker_cache
 from .answers import answer_of
 from .structure_bytes import kind_of
@@ -56,8 +55,7 @@ def closest_point(structure, points, mask=None, *, threads=1):
 
 
 def signed_distance(structure, points, mask=None, *, threads=1):
-    """closest_point's distance, negative inside: a float64 dask array. TypeError for a Grid
-    (and for a Scene where this hbv has no ``Scene.signed_distance``)."""
+    """closest_point's distance, negative inside: a float64 dask array. TypeError for a Grid."""
     return _point_query("signed_distance", structure, points, mask, threads)
 
 
@@ -82,7 +80,7 @@ def _point_query(query, structure, points, mask, threads):
 
 def _prepare(query, structure, mask):
     kind = structure.kind if isinstance(structure, StructureHandle) else kind_of(structure)
-    form, members = answer_of(query, kind, hasattr(_hbv.Scene, "signed_distance"))
+    form, members = answer_of(query, kind)
     if mask is not None and kind != "scene":
         raise TypeError(f"{query}: mask is a Scene's (instance masks); this structure is a {kind}")
     return share(structure), form, members
