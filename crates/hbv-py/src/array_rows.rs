@@ -106,16 +106,17 @@ impl<'py, T: Coordinate> RowValues<'py, T> {
 }
 
 /// The row stride, in items, with which [`RowValues`] reads `array` in place, if it can: an
-/// aligned 2-D array of `T`'s dtype in native byte order whose rows' values are one item apart
+/// aligned `(N, 3)` array of `T`'s dtype in native byte order whose rows' values are one item apart
 /// and whose rows are a whole number of items, at least three, apart (any stride when there
 /// are fewer than two rows: only row 0 is read).
 fn row_stride<T: Element>(array: &Bound<'_, PyUntypedArray>) -> Option<usize> {
     let item = std::mem::size_of::<T>() as isize;
     let (shape, strides) = (array.shape(), array.strides());
     let readable = shape.len() == 2
+        && shape[1] == 3
         && array.is_aligned()
         && array.cast::<PyArrayDyn<T>>().is_ok()
-        && (shape[1] < 2 || strides[1] == item);
+        && strides[1] == item;
     if !readable {
         return None;
     }
