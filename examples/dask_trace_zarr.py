@@ -2,7 +2,7 @@
 """Trace rays from a Zarr store against a scene on a Dask cluster, answers written to Zarr.
 
     python examples/dask_trace_zarr.py [SCENE] [--rays 100000000] [--chunk 1000000]
-        [--store rays.zarr] [--out hits.zarr] [--scheduler tcp://host:8786] [--workers 2]
+        [--store rays.zarr] [--out hits.zarr] [--force] [--scheduler tcp://host:8786] [--workers 2]
 
 SCENE: a ``.hbv`` file (``BVH.save``, ``Scene.save``, ``hbv build``), a glTF file or a mesh
 (.obj, .ply); none: a built-in scene (a field of spheres, tori and boxes on a floor, from this
@@ -13,7 +13,8 @@ The ray store is made when it does not exist (``origins`` and ``directions``, fl
 --chunk rays along the first axis), generated chunk by chunk inside the graph: neither making it
 nor tracing it holds more than a few chunks per worker. Each member of ``hbv.dask.intersect``'s
 answer becomes an array of the output store. Without --scheduler, a local cluster of --workers
-processes of one thread each (1 GiB of memory each) runs it.
+processes of one thread each (1 GiB of memory each) runs it. An output store (or the saved scene
+beside it) that exists already is left as it is, and the run refused, unless --force is given.
 """
 
 import argparse
@@ -49,13 +50,19 @@ def builtin_scene():
     return scene
 
 
-def structure_file(scene_arg, out):
-    """A .hbv file the workers open: the one given, or the scene saved beside the output."""
+def saved_scene_path(scene_arg, out):
+    """The .hbv file the workers open: the one given, or the scene's, saved beside the output."""
     if scene_arg and scene_arg.endswith(".hbv"):
         return scene_arg
-    scene = hbv.load_scene(scene_arg) if scene_arg else builtin_scene()
-    path = str(pathlib.Path(out).with_suffix(".scene.hbv"))
-    scene.save(path, overwrite=True)
+    return str(pathlib.Path(out).with_suffix(".scene.hbv"))
+
+
+def structure_file(scene_arg, out, force):
+    """Saves the scene where ``saved_scene_path`` says (a .hbv file given is used as it is)."""
+    path = saved_scene_path(scene_arg, out)
+    if path != scene_arg:
+        scene = hbv.load_scene(scene_arg) if scene_arg else builtin_scene()
+        scene.save(path, overwrite=force)
     return path
 
 
@@ -88,10 +95,15 @@ def main():
     parser.add_argument("--chunk", type=int, default=1_000_000)
     parser.add_argument("--store", default="rays.zarr")
     parser.add_argument("--out", default="hits.zarr")
+    parser.add_argument("--force", action="store_true", help="replace an existing --out store")
     parser.add_argument("--scheduler")
     parser.add_argument("--workers", type=int, default=2)
     args = parser.parse_args()
     count = int(args.rays)
+    if not args.force:
+        for existing in (args.out, saved_scene_path(args.scene, args.out)):
+            if existing != args.scene and os.path.exists(existing):
+                parser.error(f"{existing} exists: give --force to replace it, or another --out")
 
     if args.scheduler:
         client = Client(args.scheduler)
@@ -99,7 +111,7 @@ def main():
         cluster = LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
                                memory_limit="1GiB", dashboard_address=":0")
         client = Client(cluster)
-    path = structure_file(args.scene, args.out)
+    path = structure_file(args.scene, args.out, args.force)
     handle = hbv.dask.open(path)
     print(f"structure: {path} ({handle.kind}, blake2b {handle.checksum[:16]})")
     hbv.dask.preload(handle, client, warm=("intersect",))
@@ -114,7 +126,7 @@ def main():
 
     start = time.perf_counter()
     hits = hbv.dask.intersect(handle, origins, directions)
-    writes = [da.to_zarr(array, args.out, component=name, overwrite=True, compute=False)
+    writes = [da.to_zarr(array, args.out, component=name, overwrite=args.force, compute=False)
               for name, array in hits.items()]
     dask.compute(*writes)
     seconds = time.perf_counter() - start
