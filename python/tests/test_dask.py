@@ -285,3 +285,31 @@ def test_every_worker_killed_the_structure_is_sent_again(client):
     lazy = hbv.dask.count(structure, slow_origins(o), chunked(d))
     got = run_killing(client, lazy, client.run(os.getpid))  # every copy of the bytes dies
     assert_same(got, structure.count(o, d))
+
+
+EXAMPLE = os.path.join(os.path.dirname(__file__), "..", "..", "examples", "dask_trace_zarr.py")
+
+
+@pytest.mark.skipif(not os.path.exists(EXAMPLE), reason="examples/ is not beside the tests")
+def test_zarr_example_traces_and_never_replaces_an_output_unasked(client, tmp_path):
+    pytest.importorskip("zarr")
+    import subprocess
+    import sys
+
+    command = [sys.executable, EXAMPLE, "--rays", "3000", "--chunk", "1000",
+               "--scheduler", client.scheduler.address,
+               "--store", str(tmp_path / "rays.zarr"), "--out", str(tmp_path / "hits.zarr")]
+    first = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    assert first.returncode == 0, first.stderr
+    origins = da.from_zarr(str(tmp_path / "rays.zarr"), component="origins").compute()
+    directions = da.from_zarr(str(tmp_path / "rays.zarr"), component="directions").compute()
+    want = hbv.load_scene(str(tmp_path / "hits.scene.hbv")).intersect(origins, directions)
+    for name, array in want.items():
+        got = da.from_zarr(str(tmp_path / "hits.zarr"), component=name).compute()
+        assert got.dtype == array.dtype and got.tobytes() == array.tobytes(), name
+    before = sorted(p.name for p in (tmp_path / "hits.zarr").rglob("*"))
+    again = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    assert again.returncode != 0 and "--force" in again.stderr
+    assert sorted(p.name for p in (tmp_path / "hits.zarr").rglob("*")) == before
+    forced = subprocess.run(command + ["--force"], capture_output=True, text=True, timeout=120)
+    assert forced.returncode == 0, forced.stderr
