@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use hbv::bvh::build::{BuildQuality, BuilderKind, BuilderOptions};
-use hbv::bvh::layout::{LayoutKind, LayoutOptions, Wide8Layout};
+use hbv::bvh::layout::{AnyLayout, LayoutKind, LayoutOptions, Wide8Layout};
 use hbv::bvh::optimize::ReinsertionOptimizer;
 use hbv::bvh::BuildTree;
 use hbv::{Accelerator, TriangleMesh};
@@ -88,30 +88,63 @@ impl BuildOptions {
         self.builder.map_or("saved", BuilderKind::name)
     }
 
-    /// Builds the tree, optimized by reinsertion (Bittner et al. 2013) when asked; a loaded
-    /// tree's options (no builder) are built with the default builder.
-    pub fn build(&self, mesh: &TriangleMesh) -> BuildTree {
+    /// The builder and its options (a loaded tree's options, with no builder, name the default
+    /// builder).
+    fn builder_and_options(&self) -> (BuilderKind, BuilderOptions) {
         let options = BuilderOptions {
             leaf_size: self.leaf_size,
             optimize: self.optimize,
             ..BuilderOptions::default()
         };
-        self.builder
-            .unwrap_or(BuilderKind::BinnedSah)
-            .build(mesh, &options)
+        (self.builder.unwrap_or(BuilderKind::BinnedSah), options)
     }
 
-    /// The layout named, over `tree`; the wide-8 one is `wide()`'s, which the all-hits
-    /// queries share.
-    pub fn lay_out(
+    /// Builds the tree, optimized by reinsertion (Bittner et al. 2013) when asked.
+    pub fn build(&self, mesh: &TriangleMesh) -> BuildTree {
+        let (builder, options) = self.builder_and_options();
+        builder.build(mesh, &options)
+    }
+
+    /// What a new BVH builds first: the layout straight from `mesh`, with no build tree, where
+    /// the library can ([`LayoutKind::builds_direct`]: binned SAH without optimization into wide
+    /// nodes; the same answers as the layout of [`BuildOptions::build`]'s tree, whose nodes
+    /// differ only in leaves of four triangles or fewer); the tree otherwise.
+    pub fn build_first(&self, mesh: &TriangleMesh) -> FirstBuild {
+        let (builder, options) = self.builder_and_options();
+        if !self.layout.builds_direct(builder, &options) {
+            return FirstBuild::Tree(builder.build(mesh, &options));
+        }
+        let layout_options = LayoutOptions::default();
+        match self
+            .layout
+            .build_and_lay_out(mesh, builder, &options, &layout_options)
+        {
+            AnyLayout::Wide8(wide) => FirstBuild::Wide8(wide),
+            other => FirstBuild::Layout(Arc::new(other)),
+        }
+    }
+
+    /// The layout named, over the tree `tree` gives (asked for only by the layouts made from
+    /// it); the wide-8 one is `wide()`'s, which the all-hits queries share.
+    pub fn lay_out<'t>(
         &self,
-        tree: &BuildTree,
+        tree: impl FnOnce() -> &'t BuildTree,
         mesh: &TriangleMesh,
         wide: impl FnOnce() -> Arc<Wide8Layout>,
     ) -> Arc<dyn Accelerator> {
         match self.layout {
             LayoutKind::Wide8 => wide(),
-            other => Arc::new(other.lay_out(tree, mesh, &LayoutOptions::default())),
+            other => Arc::new(other.lay_out(tree(), mesh, &LayoutOptions::default())),
         }
     }
+}
+
+/// What [`BuildOptions::build_first`] built.
+pub enum FirstBuild {
+    /// The build tree, to lay out on first use.
+    Tree(BuildTree),
+    /// The wide-8 layout, built straight from the mesh.
+    Wide8(Wide8Layout),
+    /// Another layout (wide-4), built straight from the mesh.
+    Layout(Arc<dyn Accelerator>),
 }
