@@ -95,26 +95,34 @@ impl PyBvh {
         build_seconds: f64,
         settings: String,
     ) -> Self {
-        let bvh = Self::without_structures(mesh, triangles, options, build_seconds, settings);
-        bvh.tree.get_or_init(|| Arc::new(tree));
-        bvh
+        let first = FirstBuild::Tree(tree);
+        Self::with_first_build(mesh, triangles, options, first, build_seconds, settings)
     }
 
-    /// A BVH over `triangles` whose tree and layouts are all still to be made.
-    fn without_structures(
+    /// A BVH holding what was built first (the tree, or a layout straight from the mesh);
+    /// everything else is made on first use.
+    fn with_first_build(
         mesh: Py<PyMesh>,
         triangles: Arc<TriangleMesh>,
         options: BuildOptions,
+        first: FirstBuild,
         build_seconds: f64,
         settings: String,
     ) -> Self {
+        let (tree, accel, wide) = (OnceLock::new(), OnceLock::new(), OnceLock::new());
+        let set = match first {
+            FirstBuild::Tree(built) => tree.set(Arc::new(built)).is_ok(),
+            FirstBuild::Wide8(built) => wide.set(Arc::new(built)).is_ok(),
+            FirstBuild::Layout(built) => accel.set(built).is_ok(),
+        };
+        debug_assert!(set, "a new lock takes its first value");
         Self {
             mesh,
             triangles,
             options,
-            tree: OnceLock::new(),
-            accel: OnceLock::new(),
-            wide: OnceLock::new(),
+            tree,
+            accel,
+            wide,
             closest: OnceLock::new(),
             build_seconds,
             settings,
@@ -206,13 +214,14 @@ impl PyBvh {
         });
         let settings = describe(&options);
         let mesh = mesh.clone().unbind();
-        let bvh = Self::without_structures(mesh, triangles, options, build_seconds, settings);
-        match built {
-            FirstBuild::Tree(tree) => drop(bvh.tree.set(Arc::new(tree))),
-            FirstBuild::Wide8(wide) => drop(bvh.wide.set(Arc::new(wide))),
-            FirstBuild::Layout(layout) => drop(bvh.accel.set(layout)),
-        }
-        Ok(bvh)
+        Ok(Self::with_first_build(
+            mesh,
+            triangles,
+            options,
+            built,
+            build_seconds,
+            settings,
+        ))
     }
 
     /// The mesh the tree was built over.
