@@ -13,8 +13,9 @@ with the hits in NumPy arrays:
   first query);
 - trimesh: `Trimesh(v, f, process=False)` and its Embree intersector, then `intersects_first`.
 
-Each round runs every contender once, interleaved, on a structure made anew; the first round
-is discarded (imports, first-touch of the libraries' code); the median of `--repeat` rounds is
+Each round runs every contender once, interleaved (in the listed order, then in the reverse
+order the next round, so that none always follows the same one), on a structure made anew; the
+first round is discarded (imports, first-touch of the libraries' code); the median of `--repeat` rounds is
 reported, and each ratio is the median of the rounds' ratios. Rays: `python_compare.py`'s
 `random` set (from a sphere about the mesh towards points of its box).
 
@@ -95,7 +96,8 @@ def measure(path, args):
     run = contenders(v, f, o, d, args.qualities, args.baseline_package)
     seconds = {name: [] for name in run}
     for round_ in range(args.repeat + 1):
-        for name, call in run.items():
+        order = list(run.items())
+        for name, call in order if round_ % 2 else reversed(order):
             start = time.perf_counter()
             call()
             if round_:
