@@ -1,7 +1,8 @@
 """A BVH built straight into its wide layout (binned SAH without optimization, the default on
-meshes of more than 1,024 triangles) answers as one laid out from a build tree, and builds
-that same tree when a later call needs it (closest_point, save, stats, pickle, Scene.add)."""
+meshes of 8,192 triangles or more) answers as one laid out from a build tree, and builds that
+same tree when a later call needs it (closest_point, save, stats, pickle, Scene.add)."""
 
+import functools
 import pickle
 import warnings
 
@@ -12,17 +13,22 @@ import hbv
 from conftest import icosphere, random_rays, soup
 
 
+@functools.cache
 def shapes():
-    """Meshes with ties: a sphere, a soup with degenerate triangles, the soup's triangles twice
-    (every hit tied between two ids), a flat grid of coplanar triangles."""
-    sphere = icosphere(3)
-    v, f = soup(400)
-    doubled = (v, np.vstack([f, f]))
-    xs, ys = np.meshgrid(np.linspace(-1, 1, 24), np.linspace(-1, 1, 24))
+    """Meshes of more than 8,192 triangles (built straight into wide nodes) with ties: a
+    sphere, a soup with degenerate triangles, a soup's triangles twice (every hit tied between
+    two ids), a flat grid of coplanar triangles."""
+    sphere = icosphere(5)
+    v, f = soup(9000)
+    doubled_v, doubled_f = soup(4200, seed=5)
+    xs, ys = np.meshgrid(np.linspace(-1, 1, 70), np.linspace(-1, 1, 70))
     grid_v = np.column_stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)])
-    k = np.arange(24 * 23).reshape(23, 24)[:, :23].ravel()
-    grid_f = np.vstack([np.column_stack([k, k + 1, k + 24]), np.column_stack([k + 1, k + 25, k + 24])])
-    return {"sphere": sphere, "soup": (v, f), "doubled": doubled, "grid": (grid_v, grid_f)}
+    k = np.arange(70 * 69).reshape(69, 70)[:, :69].ravel()
+    grid_f = np.vstack([np.column_stack([k, k + 1, k + 70]), np.column_stack([k + 1, k + 71, k + 70])])
+    meshes = {"sphere": sphere, "soup": (v, f), "doubled": (doubled_v, np.vstack([doubled_f] * 2)),
+              "grid": (grid_v, grid_f)}
+    assert all(len(f) >= 8192 for _, f in meshes.values())
+    return meshes
 
 
 def rays(n=2000):
@@ -62,7 +68,7 @@ def test_straight_build_answers_as_the_tree_laid_out(name, layout, leaf_size):
 
 
 def test_the_tree_built_later_is_the_tree_built_first():
-    v, f = icosphere(3)
+    v, f = shapes()["sphere"]
     mesh = hbv.Mesh(v, f)
     through_tree = hbv.BVH(mesh, layout="ordered")
     want = {k: x for k, x in through_tree.stats().items() if k not in ("layout", "build_seconds")}
@@ -83,7 +89,7 @@ def test_the_tree_built_later_is_the_tree_built_first():
 
 
 def test_saved_and_loaded_straight_build_answers_the_same(tmp_path):
-    v, f = soup(600)
+    v, f = shapes()["soup"]
     mesh = hbv.Mesh(v, f)
     o, d = rays()
     bvh = hbv.BVH(mesh, optimize=False)
@@ -98,7 +104,7 @@ def test_saved_and_loaded_straight_build_answers_the_same(tmp_path):
 
 
 def test_scene_of_a_straight_build_answers_as_one_of_its_mesh():
-    v, f = icosphere(3)
+    v, f = shapes()["sphere"]
     mesh = hbv.Mesh(v, f)
     o, d = rays()
     of_bvh, of_mesh = hbv.Scene(), hbv.Scene()
@@ -110,10 +116,10 @@ def test_scene_of_a_straight_build_answers_as_one_of_its_mesh():
 def test_straight_build_of_empty_and_degenerate_meshes_answers_misses():
     o, d = rays(100)
     empty = hbv.BVH(hbv.Mesh(np.zeros((0, 3)), np.zeros((0, 3), np.int64)), optimize=False)
-    flat = hbv.BVH(hbv.Mesh(np.zeros((3, 3)), np.zeros((2000, 3), np.int64)), optimize=False)
+    flat = hbv.BVH(hbv.Mesh(np.zeros((3, 3)), np.zeros((9000, 3), np.int64)), optimize=False)
     for bvh in (empty, flat):
         assert not bvh.intersect(o, d)["hit"].any()
         assert not bvh.occluded(o, d).any()
         assert (bvh.count(o, d) == 0).all()
-        assert bvh.stats()["triangles"] in (0, 2000)
+        assert bvh.stats()["triangles"] in (0, 9000)
         assert (bvh.closest_point(o[:5])["prim"] == -1).all()

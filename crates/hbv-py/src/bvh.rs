@@ -48,7 +48,7 @@ use crate::thread_pool::{one_thread, run_here_or_on_threads, ThreadCount};
 /// leaf_size: most triangles per leaf (1 to 255; default: the builder's).
 ///
 /// Built here (`stats()["build_seconds"]`): with binned SAH without optimization into a wide
-/// layout (quality "medium" on meshes of more than 1,024 triangles), the layout itself, straight
+/// layout (quality "medium") on meshes of 8,192 triangles or more, the layout itself, straight
 /// from the mesh; otherwise the tree. What each kind of query walks is made on that kind's first
 /// call: the layout on the first intersect or occluded, the wide-8 layout on the first
 /// intersect_all, count or contains. closest_point and signed_distance walk the tree itself
