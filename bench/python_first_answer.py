@@ -13,15 +13,22 @@ with the hits in NumPy arrays:
   first query);
 - trimesh: `Trimesh(v, f, process=False)` and its Embree intersector, then `intersects_first`.
 
-Each round runs every contender once, interleaved, on a structure made anew; the first round
-is discarded (imports, first-touch of the libraries' code); the median of `--repeat` rounds is
+Each round runs every contender once, interleaved (in the listed order, then in the reverse
+order the next round, so that none always follows the same one), on a structure made anew; the
+first round is discarded (imports, first-touch of the libraries' code); the median of `--repeat` rounds is
 reported, and each ratio is the median of the rounds' ratios. Rays: `python_compare.py`'s
 `random` set (from a sphere about the mesh towards points of its box).
 
-    ../py-bench-venv/bin/python bench/python_first_answer.py [MESH.ply ...] [--rays 10000] [--repeat 7]
+`--baseline DIR` adds another build of hbv (DIR: the folder holding its `hbv` package, e.g. a
+copy of `python/` with that commit's extension) to the same rounds, each quality as
+`base <quality>`, and a last column: each quality's baseline time over this build's (the
+median of the rounds' ratios; above 1: this build answers sooner).
+
+    ../py-bench-venv/bin/python bench/python_first_answer.py [MESH.ply ...] [--rays 10000] [--repeat 7] [--baseline DIR]
 """
 
 import argparse
+import importlib.util
 import os
 import pathlib
 import statistics
@@ -39,15 +46,26 @@ from python_compare import ray_sets  # noqa: E402
 SCENES = pathlib.Path(__file__).resolve().parent.parent.parent / "shared/scenes"
 
 
-def contenders(v, f, o, d, qualities):
+def load_baseline(folder):
+    """The `hbv` package in `folder`, imported as `hbv_baseline` beside this build's."""
+    package = pathlib.Path(folder).resolve() / "hbv"
+    spec = importlib.util.spec_from_file_location(
+        "hbv_baseline", package / "__init__.py", submodule_search_locations=[str(package)])
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["hbv_baseline"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def contenders(v, f, o, d, qualities, baseline):
     import open3d as o3d
     import trimesh
     from embreex import rtcore_scene
     from embreex.mesh_construction import TriangleMesh as EmbreeMesh
     from trimesh.ray.ray_pyembree import RayMeshIntersector as TrimeshEmbree
 
-    def hbv_answer(quality):
-        return lambda: hbv.BVH(hbv.Mesh(v, f), quality=quality).intersect(o, d)["prim"]
+    def hbv_answer(quality, package=hbv):
+        return lambda: package.BVH(package.Mesh(v, f), quality=quality).intersect(o, d)["prim"]
 
     def embreex_answer():
         scene = rtcore_scene.EmbreeScene()
@@ -64,6 +82,8 @@ def contenders(v, f, o, d, qualities):
         return TrimeshEmbree(mesh).intersects_first(o, d)
 
     run = {f"hbv {q}": hbv_answer(q) for q in qualities}
+    if baseline is not None:
+        run.update({f"base {q}": hbv_answer(q, baseline) for q in qualities})
     run.update({"embreex": embreex_answer, "open3d": open3d_answer, "trimesh": trimesh_answer})
     return run
 
@@ -73,10 +93,11 @@ def measure(path, args):
     v = np.ascontiguousarray(mesh.vertices, dtype=np.float32)
     f = np.ascontiguousarray(mesh.faces, dtype=np.int64)
     o, d = ray_sets(v, args.rays, args.seed)["random"]
-    run = contenders(v, f, o, d, args.qualities)
+    run = contenders(v, f, o, d, args.qualities, args.baseline_package)
     seconds = {name: [] for name in run}
     for round_ in range(args.repeat + 1):
-        for name, call in run.items():
+        order = list(run.items())
+        for name, call in order if round_ % 2 else reversed(order):
             start = time.perf_counter()
             call()
             if round_:
@@ -91,11 +112,16 @@ def main():
     p.add_argument("--repeat", type=int, default=7)
     p.add_argument("--seed", type=int, default=7)
     p.add_argument("--qualities", nargs="+", default=["low", "medium"])
+    p.add_argument("--baseline", type=pathlib.Path, help="folder holding another build's hbv")
     args = p.parse_args()
+    args.baseline_package = load_baseline(args.baseline) if args.baseline else None
+    base_names = [f"base {q}" for q in args.qualities] if args.baseline else []
     meshes = args.meshes or sorted(SCENES.glob("*.ply"), key=lambda m: m.stat().st_size)
     print("| mesh (triangles) | " + " | ".join(f"hbv {q}" for q in args.qualities)
-          + " | embreex | Open3D | trimesh | best hbv against each (×) |")
-    print("| --- |" + " ---: |" * (len(args.qualities) + 4))
+          + "".join(f" | {n}" for n in base_names)
+          + " | embreex | Open3D | trimesh | best hbv against each (×) |"
+          + (" baseline over this build, each quality (×) |" if base_names else ""))
+    print("| --- |" + " ---: |" * (len(args.qualities) + len(base_names) + 4 + bool(base_names)))
     for path in meshes:
         triangles, seconds = measure(path, args)
         ms = {name: statistics.median(s) * 1e3 for name, s in seconds.items()}
@@ -103,8 +129,12 @@ def main():
         best = [min(seconds[n][r] for n in hbv_names) for r in range(args.repeat)]
         ratio = {other: statistics.median(seconds[other][r] / best[r] for r in range(args.repeat))
                  for other in ("embreex", "open3d", "trimesh")}
-        cells = [f"{ms[n]:.1f}" for n in hbv_names + ["embreex", "open3d", "trimesh"]]
+        cells = [f"{ms[n]:.1f}" for n in hbv_names + base_names + ["embreex", "open3d", "trimesh"]]
         ratios = " · ".join(f"{ratio[o]:.2f}" for o in ("embreex", "open3d", "trimesh"))
+        if base_names:
+            gains = [statistics.median(seconds[b][r] / seconds[n][r] for r in range(args.repeat))
+                     for b, n in zip(base_names, hbv_names)]
+            ratios += " | " + " · ".join(f"{g:.2f}" for g in gains)
         print(f"| {path.stem} ({triangles:,}) | " + " | ".join(cells) + f" | {ratios} |", flush=True)
 
 

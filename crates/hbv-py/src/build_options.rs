@@ -5,7 +5,7 @@
 use std::sync::Arc;
 
 use hbv::bvh::build::{BuildQuality, BuilderKind, BuilderOptions};
-use hbv::bvh::layout::{LayoutKind, LayoutOptions, Wide8Layout};
+use hbv::bvh::layout::{AnyLayout, LayoutKind, LayoutOptions, Wide8Layout};
 use hbv::bvh::optimize::ReinsertionOptimizer;
 use hbv::bvh::BuildTree;
 use hbv::{Accelerator, TriangleMesh};
@@ -15,6 +15,15 @@ use pyo3::PyResult;
 /// The widest leaf the builders make (`LeafPolicy` clamps to 255); the wide layouts split
 /// leaves of more than 64 triangles themselves, the other layouts take any size.
 pub const MAX_LEAF_SIZE: usize = 255;
+
+/// The fewest triangles a new BVH builds straight into its wide layout
+/// ([`BuildOptions::build_first`]): 2 × 4,096, where the direct builder's two top subtrees are
+/// big enough to be built as parallel tasks of their own. Below, the binary builder's parallel
+/// recursion then the layout answers sooner on two threads: 10,000 rays' first answer on a
+/// prefix of the bunny took 0.94× the time through the tree at 8,000 triangles, 1.23–1.34× at
+/// 9,000 and 1.2–1.6× from 10,000 to 50,000 (`bench/python_first_answer.py --baseline`,
+/// BENCHMARKS.md "First answer").
+pub const DIRECT_BUILD_MIN_TRIANGLES: usize = 8192;
 
 /// What a BVH is built from: the constructor's arguments, checked.
 #[derive(Clone, Debug)]
@@ -88,30 +97,66 @@ impl BuildOptions {
         self.builder.map_or("saved", BuilderKind::name)
     }
 
-    /// Builds the tree, optimized by reinsertion (Bittner et al. 2013) when asked; a loaded
-    /// tree's options (no builder) are built with the default builder.
-    pub fn build(&self, mesh: &TriangleMesh) -> BuildTree {
+    /// The builder and its options (a loaded tree's options, with no builder, name the default
+    /// builder).
+    fn builder_and_options(&self) -> (BuilderKind, BuilderOptions) {
         let options = BuilderOptions {
             leaf_size: self.leaf_size,
             optimize: self.optimize,
             ..BuilderOptions::default()
         };
-        self.builder
-            .unwrap_or(BuilderKind::BinnedSah)
-            .build(mesh, &options)
+        (self.builder.unwrap_or(BuilderKind::BinnedSah), options)
     }
 
-    /// The layout named, over `tree`; the wide-8 one is `wide()`'s, which the all-hits
-    /// queries share.
-    pub fn lay_out(
+    /// Builds the tree, optimized by reinsertion (Bittner et al. 2013) when asked.
+    pub fn build(&self, mesh: &TriangleMesh) -> BuildTree {
+        let (builder, options) = self.builder_and_options();
+        builder.build(mesh, &options)
+    }
+
+    /// What a new BVH builds first: the layout straight from `mesh`, with no build tree, where
+    /// the library can ([`LayoutKind::builds_direct`]: binned SAH without optimization into wide
+    /// nodes; the same answers as the layout of [`BuildOptions::build`]'s tree, whose nodes
+    /// differ only in leaves of four triangles or fewer) and it answers sooner (meshes of
+    /// [`DIRECT_BUILD_MIN_TRIANGLES`] or more); the tree otherwise.
+    pub fn build_first(&self, mesh: &TriangleMesh) -> FirstBuild {
+        let (builder, options) = self.builder_and_options();
+        let direct = mesh.triangle_count() >= DIRECT_BUILD_MIN_TRIANGLES
+            && self.layout.builds_direct(builder, &options);
+        if !direct {
+            return FirstBuild::Tree(builder.build(mesh, &options));
+        }
+        let layout_options = LayoutOptions::default();
+        match self
+            .layout
+            .build_and_lay_out(mesh, builder, &options, &layout_options)
+        {
+            AnyLayout::Wide8(wide) => FirstBuild::Wide8(wide),
+            other => FirstBuild::Layout(Arc::new(other)),
+        }
+    }
+
+    /// The layout named, over the tree `tree` gives (asked for only by the layouts made from
+    /// it); the wide-8 one is `wide()`'s, which the all-hits queries share.
+    pub fn lay_out<'t>(
         &self,
-        tree: &BuildTree,
+        tree: impl FnOnce() -> &'t BuildTree,
         mesh: &TriangleMesh,
         wide: impl FnOnce() -> Arc<Wide8Layout>,
     ) -> Arc<dyn Accelerator> {
         match self.layout {
             LayoutKind::Wide8 => wide(),
-            other => Arc::new(other.lay_out(tree, mesh, &LayoutOptions::default())),
+            other => Arc::new(other.lay_out(tree(), mesh, &LayoutOptions::default())),
         }
     }
+}
+
+/// What [`BuildOptions::build_first`] built.
+pub enum FirstBuild {
+    /// The build tree, to lay out on first use.
+    Tree(BuildTree),
+    /// The wide-8 layout, built straight from the mesh.
+    Wide8(Wide8Layout),
+    /// Another layout (wide-4), built straight from the mesh.
+    Layout(Arc<dyn Accelerator>),
 }

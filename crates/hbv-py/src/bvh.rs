@@ -19,7 +19,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyTuple};
 
 use crate::arrays::{float_array, FloatSlice};
-use crate::build_options::BuildOptions;
+use crate::build_options::{BuildOptions, FirstBuild};
 use crate::bvh_file::{describe, save};
 use crate::mesh::PyMesh;
 use crate::mesh_inside::InsideCellsOnDemand;
@@ -49,17 +49,23 @@ use crate::thread_pool::{one_thread, run_here_or_on_threads, ThreadCount};
 /// without building again.
 /// leaf_size: most triangles per leaf (1 to 255; default: the builder's).
 ///
-/// The tree is built here (`stats()["build_seconds"]`); what each kind of query walks is made
-/// from it on that kind's first call: the layout on the first intersect or occluded, the wide-8
-/// layout on the first intersect_all, count or contains. closest_point and signed_distance walk
-/// the tree itself for their first 32 √triangles points, then make a nearest-point tree in
-/// the call that would pass that count.
+/// Built here (`stats()["build_seconds"]`): with binned SAH without optimization into a wide
+/// layout (quality "medium") on meshes of 8,192 triangles or more, the layout itself, straight
+/// from the mesh; otherwise the tree. What each kind of query walks is made on that kind's first
+/// call: the layout on the first intersect or occluded, the wide-8 layout on the first
+/// intersect_all, count or contains. closest_point and signed_distance walk the tree itself
+/// for their first 32 √triangles points, then make a nearest-point tree in the call that would
+/// pass that count. The tree, where the layout was built without it, is built (the same tree
+/// as ever) on the first call that needs it: closest_point, save, stats, a layout other than
+/// the one built, adding the BVH to a Scene. Every answer is the same either way.
 #[pyclass(name = "BVH", module = "hbv", frozen)]
 pub struct PyBvh {
     mesh: Py<PyMesh>,
     triangles: Arc<TriangleMesh>,
     options: BuildOptions,
-    tree: Arc<BuildTree>,
+    /// The build tree: built by the constructor, or on first use where the constructor built
+    /// the layout straight from the mesh (`BuildOptions::build_first`).
+    tree: OnceLock<Arc<BuildTree>>,
     /// The tree laid out as `options.layout` says, for the closest- and any-hit queries: made
     /// on the first of them, so that a BVH asked only for nearest points never lays out a ray
     /// structure (the dragon's wide-8 layout takes a third of its build's time).
@@ -68,8 +74,8 @@ pub struct PyBvh {
     /// `accel` too when it is the layout).
     wide: OnceLock<Arc<Wide8Layout>>,
     /// The nearest-point queries: walks of `tree` at first, the search tree once it pays
-    /// (`ClosestPointsOnDemand`).
-    closest: ClosestPointsOnDemand,
+    /// (`ClosestPointsOnDemand`); made on the first of them.
+    closest: OnceLock<ClosestPointsOnDemand>,
     /// The inside tests' grid on a closed mesh, once enough points have been asked
     /// (`InsideCellsOnDemand`).
     inside_cells: InsideCellsOnDemand,
@@ -94,15 +100,35 @@ impl PyBvh {
         build_seconds: f64,
         settings: String,
     ) -> Self {
-        let tree = Arc::new(tree);
+        let first = FirstBuild::Tree(tree);
+        Self::with_first_build(mesh, triangles, options, first, build_seconds, settings)
+    }
+
+    /// A BVH holding what was built first (the tree, or a layout straight from the mesh);
+    /// everything else is made on first use.
+    fn with_first_build(
+        mesh: Py<PyMesh>,
+        triangles: Arc<TriangleMesh>,
+        options: BuildOptions,
+        first: FirstBuild,
+        build_seconds: f64,
+        settings: String,
+    ) -> Self {
+        let (tree, accel, wide) = (OnceLock::new(), OnceLock::new(), OnceLock::new());
+        let set = match first {
+            FirstBuild::Tree(built) => tree.set(Arc::new(built)).is_ok(),
+            FirstBuild::Wide8(built) => wide.set(Arc::new(built)).is_ok(),
+            FirstBuild::Layout(built) => accel.set(built).is_ok(),
+        };
+        debug_assert!(set, "a new lock takes its first value");
         Self {
             mesh,
-            closest: ClosestPointsOnDemand::new(tree.clone(), triangles.clone()),
             triangles,
             options,
             tree,
-            accel: OnceLock::new(),
-            wide: OnceLock::new(),
+            accel,
+            wide,
+            closest: OnceLock::new(),
             inside_cells: InsideCellsOnDemand::default(),
             build_seconds,
             settings,
@@ -113,26 +139,48 @@ impl PyBvh {
     pub fn to_file(&self) -> BvhFile {
         BvhFile {
             mesh: (*self.triangles).clone(),
-            tree: (*self.tree).clone(),
+            tree: (**self.tree_off_gil()).clone(),
             settings: self.settings.clone(),
         }
     }
 
     /// The mesh and the tree built over it (what `hbv.Scene.add` lays out again).
     pub fn mesh_and_tree(&self) -> (&Arc<TriangleMesh>, &Arc<BuildTree>) {
-        (&self.triangles, &self.tree)
+        (&self.triangles, self.tree_off_gil())
+    }
+
+    /// The build tree, built now (by the options, deterministically: the tree the constructor
+    /// would have kept) if the constructor laid the mesh out without one.
+    fn tree(&self) -> &Arc<BuildTree> {
+        self.tree
+            .get_or_init(|| Arc::new(self.options.build(&self.triangles)))
+    }
+
+    /// [`PyBvh::tree`] for a caller holding the GIL: released while the tree is built.
+    fn tree_off_gil(&self) -> &Arc<BuildTree> {
+        match self.tree.get() {
+            Some(tree) => tree,
+            None => Python::attach(|py| py.detach(|| self.tree())),
+        }
     }
 
     fn wide(&self) -> &Arc<Wide8Layout> {
         self.wide
-            .get_or_init(|| Arc::new(Wide8Layout::new(&self.tree, &self.triangles)))
+            .get_or_init(|| Arc::new(Wide8Layout::new(self.tree(), &self.triangles)))
+    }
+
+    /// The nearest-point queries' state, made (with the tree, if it is still to be built) on
+    /// the first of them.
+    fn closest(&self) -> &ClosestPointsOnDemand {
+        self.closest
+            .get_or_init(|| ClosestPointsOnDemand::new(self.tree().clone(), self.triangles.clone()))
     }
 
     /// The structure of the closest- and any-hit queries, laid out now if this is the first
     /// (with the GIL released: other Python threads go on meanwhile).
     fn accel(&self, py: Python<'_>) -> &dyn Accelerator {
         let laid_out =
-            || (self.options).lay_out(&self.tree, &self.triangles, || self.wide().clone());
+            || (self.options).lay_out(|| self.tree(), &self.triangles, || self.wide().clone());
         match self.accel.get() {
             Some(accel) => &**accel,
             None => &**py.detach(|| self.accel.get_or_init(laid_out)),
@@ -165,17 +213,18 @@ impl PyBvh {
             leaf_size,
             triangles.triangle_count(),
         )?;
-        let (tree, build_seconds) = py.detach(|| {
+        let (built, build_seconds) = py.detach(|| {
             let start = Instant::now();
-            let tree = options.build(&triangles);
-            (tree, start.elapsed().as_secs_f64())
+            let built = options.build_first(&triangles);
+            (built, start.elapsed().as_secs_f64())
         });
         let settings = describe(&options);
-        Ok(Self::from_parts(
-            mesh.clone().unbind(),
+        let mesh = mesh.clone().unbind();
+        Ok(Self::with_first_build(
+            mesh,
             triangles,
             options,
-            tree,
+            built,
             build_seconds,
             settings,
         ))
@@ -339,12 +388,12 @@ impl PyBvh {
                     v: &mut v,
                 };
                 match points {
-                    FloatSlice::F32(values) => self.closest.closest_points_into_with(
+                    FloatSlice::F32(values) => self.closest().closest_points_into_with(
                         &rows_of(values),
                         columns,
                         batch_threads,
                     ),
-                    FloatSlice::F64(values) => self.closest.closest_points_into_with(
+                    FloatSlice::F64(values) => self.closest().closest_points_into_with(
                         &rows_of(values),
                         columns,
                         batch_threads,
@@ -405,31 +454,30 @@ impl PyBvh {
 
     /// The tree's expected number of intersection tests per random line, E[X] =
     /// Σ_n a_n · SA(n) / SA(root) (a_n: child boxes, or triangles of a leaf, tested at n).
-    fn expected_tests(&self) -> f64 {
-        expected_tests(&self.tree)
+    fn expected_tests(&self, py: Python<'_>) -> f64 {
+        py.detach(|| expected_tests(self.tree()))
     }
 
     /// The SAH cost (MacDonald & Booth 1990) with weights C_t (traversal) and C_i
     /// (intersection): Σ_internal C_t·SA(n)/SA(root) + Σ_leaf C_i·|n|·SA(n)/SA(root).
     #[pyo3(signature = (traversal=1.0, intersection=1.0))]
-    fn sah_cost(&self, traversal: f64, intersection: f64) -> PyResult<f64> {
+    fn sah_cost(&self, py: Python<'_>, traversal: f64, intersection: f64) -> PyResult<f64> {
         if !(traversal.is_finite() && intersection.is_finite()) {
             return Err(PyValueError::new_err(
                 "sah_cost: the weights must be finite numbers",
             ));
         }
-        Ok(sah_cost(
-            &self.tree,
-            SahWeights {
-                traversal,
-                intersection,
-            },
-        ))
+        let weights = SahWeights {
+            traversal,
+            intersection,
+        };
+        Ok(py.detach(|| sah_cost(self.tree(), weights)))
     }
 
     /// The tree's shape and costs, and how it was built, as a dict.
     fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let shape = self.tree.shape();
+        let tree = py.detach(|| self.tree());
+        let shape = tree.shape();
         let out = PyDict::new(py);
         out.set_item("builder", self.options.builder_name())?;
         out.set_item("layout", self.options.layout.name())?;
@@ -441,8 +489,8 @@ impl PyBvh {
         out.set_item("leaves", shape.leaves)?;
         out.set_item("depth_max", shape.depth_max)?;
         out.set_item("depth_mean", shape.depth_mean)?;
-        out.set_item("expected_tests", self.expected_tests())?;
-        out.set_item("sah_cost", sah_cost(&self.tree, SahWeights::default()))?;
+        out.set_item("expected_tests", expected_tests(tree))?;
+        out.set_item("sah_cost", sah_cost(tree, SahWeights::default()))?;
         out.set_item("build_seconds", self.build_seconds)?;
         out.set_item("settings", &self.settings)?;
         Ok(out)

@@ -117,13 +117,9 @@ impl LayoutKind {
         builder_options: &BuilderOptions,
         options: &LayoutOptions,
     ) -> AnyLayout {
-        let leaf = builder_options
-            .leaf_size
-            .unwrap_or(builder.default_leaf_size());
-        let direct = builder == BuilderKind::BinnedSah && !builder_options.optimize && leaf <= 64;
-        if direct {
+        if self.builds_direct(builder, builder_options) {
             let mut config = BinnedSahConfig::default();
-            config.leaf.max_leaf_size = leaf;
+            config.leaf.max_leaf_size = Self::leaf_size(builder, builder_options);
             match self {
                 LayoutKind::Wide4 => {
                     return AnyLayout::Wide4(Wide4Layout::build_direct(mesh, &config))
@@ -138,6 +134,23 @@ impl LayoutKind {
             }
         }
         self.lay_out(&builder.build(mesh, builder_options), mesh, options)
+    }
+
+    /// Whether [`LayoutKind::build_and_lay_out`] builds this layout straight from the mesh, with
+    /// no build tree: binned SAH without optimization, leaves of at most 64 triangles, into wide
+    /// nodes. A caller that may need the tree later (a file, nearest points) builds it then.
+    pub fn builds_direct(self, builder: BuilderKind, builder_options: &BuilderOptions) -> bool {
+        matches!(self, LayoutKind::Wide4 | LayoutKind::Wide8)
+            && builder == BuilderKind::BinnedSah
+            && !builder_options.optimize
+            && Self::leaf_size(builder, builder_options) <= 64
+    }
+
+    /// The most triangles per leaf `builder` makes with `builder_options`.
+    fn leaf_size(builder: BuilderKind, builder_options: &BuilderOptions) -> usize {
+        builder_options
+            .leaf_size
+            .unwrap_or(builder.default_leaf_size())
     }
 }
 
