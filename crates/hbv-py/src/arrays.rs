@@ -303,31 +303,48 @@ pub fn index_array(name: &str, obj: &Bound<'_, PyAny>) -> PyResult<Vec<[u32; 3]>
             shape_text(&shape)
         )));
     }
-    let flat = integer_values(name, &array)?;
-    if let Some(k) = flat
-        .iter()
-        .position(|&i| !(0..=i128::from(u32::MAX)).contains(&i))
-    {
-        let why = if flat[k] < 0 {
-            "is negative"
-        } else {
-            "does not fit 32 bits"
-        };
-        return Err(PyValueError::new_err(format!(
-            "{name}: row {}: index {} {why}",
-            k / 3,
-            flat[k]
-        )));
+    check_integer_dtype(name, &array)?;
+    // Unsigned arrays as uint64, signed as int64 (in place where they are already that), each
+    // index narrowed to u32 in one pass: no wider copy of the whole array.
+    if array.dtype().kind() == b'u' {
+        index_rows(name, ArrayValues::<u64>::read(name, &array)?.as_slice())
+    } else {
+        index_rows(name, ArrayValues::<i64>::read(name, &array)?.as_slice())
     }
-    Ok(flat
-        .chunks_exact(3)
-        .map(|c| [c[0] as u32, c[1] as u32, c[2] as u32])
-        .collect())
 }
 
-/// The values of an integer array (of any integer dtype), in C order; a TypeError naming the
-/// argument for any other dtype.
-pub fn integer_values(name: &str, array: &Bound<'_, PyUntypedArray>) -> PyResult<Vec<i128>> {
+/// Triangles of three u32 indices from a flat run of indices; a ValueError naming the row and
+/// the first index that is negative or does not fit 32 bits.
+fn index_rows<T>(name: &str, flat: &[T]) -> PyResult<Vec<[u32; 3]>>
+where
+    T: Copy + TryInto<u32> + Into<i128>,
+{
+    let mut rows = Vec::with_capacity(flat.len() / 3);
+    for (r, c) in flat.chunks_exact(3).enumerate() {
+        match (c[0].try_into(), c[1].try_into(), c[2].try_into()) {
+            (Ok(a), Ok(b), Ok(d)) => rows.push([a, b, d]),
+            _ => {
+                let bad: i128 = c
+                    .iter()
+                    .map(|&i| i.into())
+                    .find(|i| !(0..=i128::from(u32::MAX)).contains(i))
+                    .expect("an index that did not narrow is out of range");
+                let why = if bad < 0 {
+                    "is negative"
+                } else {
+                    "does not fit 32 bits"
+                };
+                return Err(PyValueError::new_err(format!(
+                    "{name}: row {r}: index {bad} {why}"
+                )));
+            }
+        }
+    }
+    Ok(rows)
+}
+
+/// A TypeError naming the argument unless the array's dtype is an integer one.
+fn check_integer_dtype(name: &str, array: &Bound<'_, PyUntypedArray>) -> PyResult<()> {
     let dtype = array.dtype();
     if dtype.kind() != b'i' && dtype.kind() != b'u' {
         return Err(PyTypeError::new_err(format!(
@@ -335,6 +352,14 @@ pub fn integer_values(name: &str, array: &Bound<'_, PyUntypedArray>) -> PyResult
             dtype.str()?
         )));
     }
+    Ok(())
+}
+
+/// The values of an integer array (of any integer dtype), in C order; a TypeError naming the
+/// argument for any other dtype.
+pub fn integer_values(name: &str, array: &Bound<'_, PyUntypedArray>) -> PyResult<Vec<i128>> {
+    check_integer_dtype(name, array)?;
+    let dtype = array.dtype();
     // Unsigned arrays as uint64 (an index above 2^63 read as int64 was shown negative).
     Ok(if dtype.kind() == b'u' {
         let values = ArrayValues::<u64>::read(name, array)?;
