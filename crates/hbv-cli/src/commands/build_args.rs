@@ -7,7 +7,7 @@ use anyhow::Context;
 use clap::{Args, ValueEnum};
 use hbv::bvh::build::{BuildQuality, Builder, BuilderKind, BuilderOptions, InsertionOrder};
 use hbv::bvh::file::{is_bvh_file, kind_of_bytes, BvhFileKind};
-use hbv::bvh::layout::{LayoutKind, LayoutOptions};
+use hbv::bvh::layout::{AnyLayout, LayoutKind, LayoutOptions};
 use hbv::bvh::optimize::ReinsertionOptimizer;
 use hbv::bvh::BuildTree;
 use hbv::mesh::procedural::default_scene;
@@ -381,6 +381,31 @@ impl Input {
             refuse_build_options(&self.name, build, "tree")?;
         }
         Ok(())
+    }
+
+    /// The mesh built straight into `layout` when nothing is saved and `build` asks for what
+    /// that build makes ([`LayoutKind::builds_direct`]: the same nodes as the tree laid out,
+    /// without the tree); with the seconds it took (build and layout) and a description. `None`
+    /// otherwise: [`Input::tree`] then builds the tree.
+    pub fn direct_layout(
+        &self,
+        build: &BuildArgs,
+        layout: LayoutKind,
+        options: &LayoutOptions,
+    ) -> Option<(AnyLayout, f64, String)> {
+        let (builder, builder_options) = (build.builder_name(), build.builder_options());
+        if self.saved.is_some() || !layout.builds_direct(builder, &builder_options) {
+            return None;
+        }
+        let start = Instant::now();
+        let accel = layout.build_and_lay_out(&self.mesh, builder, &builder_options, options);
+        let seconds = start.elapsed().as_secs_f64();
+        let described = format!(
+            "{}, straight into {} nodes",
+            build.describe(),
+            layout.name()
+        );
+        Some((accel, seconds, described))
     }
 
     /// The saved tree, or one built over the mesh with `build`; with the build report and a

@@ -277,14 +277,21 @@ fn build_mesh_target(args: &TraceArgs, pool: &ThreadPool) -> anyhow::Result<(Tar
     let (mesh, accel, build_seconds, built): (_, Box<dyn Accelerator>, f64, String) =
         match args.accel {
             AccelName::Bvh => {
-                let (mesh, built, builder_options) = pool.install(|| input.tree(&build));
-                let build_seconds = built.build_seconds + built.optimize_seconds;
                 let options = LayoutOptions {
                     ray_packets: !args.no_packets,
                 };
                 let layout = args.layout.unwrap_or(DEFAULT_LAYOUT);
-                let accel = Box::new(layout.lay_out(&built.tree, &mesh, &options));
-                (mesh, accel, build_seconds, builder_options)
+                match pool.install(|| input.direct_layout(&build, layout, &options)) {
+                    Some((accel, seconds, described)) => {
+                        (input.mesh, Box::new(accel), seconds, described)
+                    }
+                    None => {
+                        let (mesh, built, described) = pool.install(|| input.tree(&build));
+                        let build_seconds = built.build_seconds + built.optimize_seconds;
+                        let accel = Box::new(layout.lay_out(&built.tree, &mesh, &options));
+                        (mesh, accel, build_seconds, described)
+                    }
+                }
             }
             AccelName::Grid => {
                 let mesh = input.mesh;
