@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::OnceLock;
 
 use hbv::geometry::Ray;
-use hbv::glam::Vec3;
+use hbv::glam::{DVec3, Vec3};
 use hbv::proximity::{contains, InsideCells, InsideCellsConfig};
 use hbv::query::Hit;
 use hbv::{AllHits, TriangleMesh};
@@ -48,7 +48,7 @@ impl InsideCellsOnDemand {
         if asked < INSIDE_CELLS_AFTER_POINTS {
             return None;
         }
-        let exact = |centres: &[hbv::glam::DVec3]| -> Vec<bool> {
+        let exact = |centres: &[DVec3]| -> Vec<bool> {
             centres
                 .par_iter()
                 .map(|c| contains(structure, c.as_vec3()))
@@ -61,10 +61,9 @@ impl InsideCellsOnDemand {
 }
 
 /// Whether `point` lies inside the closed mesh that `structure` traces, the answer of
-/// `contains(structure, point)`: from `cells` (made over that mesh) where the point's cell
-/// knows; else by the segment to a known point nearby (`InsideCells::known_point_near`), on
-/// the other side exactly when the segment crosses the surface an odd number of times
-/// (Jordan; the all-hits queries count a crossing through an edge once); else by the ray.
+/// `contains(structure, point)`: from `cells` (made over that mesh) where the grid tells
+/// (`InsideCells::decide`: the point's cell, or the segment to a known point nearby, whose
+/// crossings the all-hits query counts, a crossing through an edge once); else by the ray.
 /// `hits` is scratch space that a run of points reuses.
 #[inline]
 pub fn inside_closed<A: AllHits + ?Sized>(
@@ -74,14 +73,13 @@ pub fn inside_closed<A: AllHits + ?Sized>(
     hits: &mut Vec<Hit>,
 ) -> bool {
     if let Some(cells) = cells {
-        let p = point.as_dvec3();
-        if let Some(answer) = cells.lookup(p) {
-            return answer;
-        }
-        if let Some((known, known_inside)) = cells.known_point_near(p) {
+        let mut crossings = |known: DVec3| {
             let segment = Ray::new(point, known.as_vec3() - point).with_interval(0.0, 1.0);
             structure.all_hits(&segment, hits);
-            return known_inside != (hits.len() % 2 == 1);
+            hits.len()
+        };
+        if let Some(answer) = cells.decide(point.as_dvec3(), Some(&mut crossings)) {
+            return answer;
         }
     }
     contains(structure, point)

@@ -147,21 +147,20 @@ pub struct SceneInsideCells {
 }
 
 /// Whether `point` lies inside the scene among the instances `mask` sees: from `grid` (made
-/// for this scene, used only without a mask) where its cell knows, or by a segment to a known
-/// point where it may; else `Scene::contains_with_mask`, a ray to infinity.
+/// for this scene, used only without a mask) where it tells (`InsideCells::decide`: the
+/// point's cell, or, where `by_segments`, the parity of `Scene::count` along the segment to a
+/// known point); else `Scene::contains_with_mask`, a ray to infinity.
 #[inline]
 fn inside(scene: &Scene, grid: Option<&SceneInsideCells>, point: DVec3, mask: u32) -> bool {
     if let Some(grid) = grid {
-        if let Some(answer) = grid.cells.lookup(point) {
-            return answer;
-        }
-        if let Some((known, known_inside)) = grid
-            .by_segments
-            .then(|| grid.cells.known_point_near(point))
-            .flatten()
-        {
+        let mut crossings = |known: DVec3| {
             let segment = SceneRay::from_f64(point, known - point).with_interval(0.0, 1.0);
-            return known_inside != (scene.count(&segment) % 2 == 1);
+            scene.count(&segment)
+        };
+        let segments: Option<&mut dyn FnMut(DVec3) -> usize> =
+            grid.by_segments.then_some(&mut crossings);
+        if let Some(answer) = grid.cells.decide(point, segments) {
+            return answer;
         }
     }
     scene.contains_with_mask(point, mask)

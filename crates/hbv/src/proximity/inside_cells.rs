@@ -216,6 +216,28 @@ impl InsideCells {
         }
     }
 
+    /// Whether `p` is inside, where the grid can tell: its cell's answer ([`lookup`]), else,
+    /// when `segment_crossings` is given, the side of a known point nearby
+    /// ([`known_point_near`]), the other side exactly when the segment from `p` to it crosses
+    /// the surface an odd number of times (`segment_crossings(known)`). `None` where neither
+    /// tells: the caller's exact test (a ray to infinity) answers.
+    ///
+    /// [`lookup`]: InsideCells::lookup
+    /// [`known_point_near`]: InsideCells::known_point_near
+    #[inline]
+    pub fn decide(
+        &self,
+        p: DVec3,
+        segment_crossings: Option<&mut dyn FnMut(DVec3) -> usize>,
+    ) -> Option<bool> {
+        if let Some(answer) = self.lookup(p) {
+            return Some(answer);
+        }
+        let crossings = segment_crossings?;
+        let (known, known_inside) = self.known_point_near(p)?;
+        Some(known_inside != (crossings(known) % 2 == 1))
+    }
+
     /// A point near `p` whose side is known: the centre of a free cell along an axis from `p`'s
     /// (the fewest steps, up to `NEAR_RINGS` (3); the nearest centre of those), else of the free
     /// cell nearest to `p` in the nearest ring of cells around `p`'s (up to `NEAR_RINGS` (3)
