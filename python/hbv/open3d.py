@@ -149,9 +149,8 @@ class RaycastingScene:
         self._default_threads = _threads(nthreads)
         self._geometries: List[_Geometry] = []
         self._structure: Any = None
-        #: Geometry j's triangle i has row ``_normal_offsets[j] + i`` of ``_normals``.
-        self._normals = np.zeros((0, 3), np.float32)
-        self._normal_offsets = np.zeros(1, np.int64)
+        #: Every geometry's triangle normals in one table, made on first use (``_normal_table``).
+        self._normals: Optional[Tuple[np.ndarray, np.ndarray]] = None
 
     # -- geometry ----------------------------------------------------------------------------
 
@@ -165,10 +164,7 @@ class RaycastingScene:
         vertices, triangles = _mesh_arrays(mesh, triangle_indices)
         geometry = _Geometry(vertices, triangles)
         self._geometries.append(geometry)
-        self._normals = np.concatenate([self._normals, geometry.normals])
-        self._normal_offsets = np.append(
-            self._normal_offsets, self._normal_offsets[-1] + len(triangles)
-        )
+        self._normals = None
         if isinstance(self._structure, Scene):
             self._structure.add(geometry.mesh)
         else:
@@ -186,6 +182,15 @@ class RaycastingScene:
                     scene.add(geometry.mesh)
                 self._structure = scene
         return self._structure
+
+    def _normal_table(self) -> Tuple[np.ndarray, np.ndarray]:
+        """(normals, offsets): geometry j's triangle i has row ``offsets[j] + i`` of normals."""
+        if self._normals is None:
+            sizes = [len(g.triangles) for g in self._geometries]
+            offsets = np.concatenate([[0], np.cumsum(sizes)]).astype(np.int64)
+            normals = [g.normals for g in self._geometries] or [np.zeros((0, 3), np.float32)]
+            self._normals = (np.concatenate(normals), offsets)
+        return self._normals
 
     def _ids(self, answer: Dict[str, np.ndarray]) -> Tuple[np.ndarray, np.ndarray]:
         """(geometry ids, primitive ids) as uint32, INVALID_ID where there is none."""
@@ -306,7 +311,8 @@ class RaycastingScene:
         valid = found["prim"] >= 0
         normals = np.zeros((len(points), 3), np.float32)
         geometry = geometry_ids[valid].astype(np.int64)
-        normals[valid] = self._normals[self._normal_offsets[geometry] + found["prim"][valid]]
+        table, offsets = self._normal_table()
+        normals[valid] = table[offsets[geometry] + found["prim"][valid]]
         return {
             "points": found["point"].astype(np.float32).reshape(lead + (3,)),
             "geometry_ids": geometry_ids.reshape(lead),
