@@ -169,7 +169,10 @@ impl HitList<'_> {
             // (t_k - t_previous - SAME_PLACE·t_k)·|d| <= SAME_PLACE·size.
             let t_previous = f64::from(t.at(k.saturating_sub(1)));
             let gap = t_k - t_previous - SAME_PLACE * t_k;
-            let length = squared_length(self.directions, index_ray[k] as usize);
+            let length = self
+                .directions
+                .row3_f64(index_ray[k] as usize)
+                .length_squared();
             let repeat =
                 same_ray & ((gap <= 0.0) | (gap * gap * length <= same_place * same_place));
             if !repeat && next_rank < rule.max_hits {
@@ -324,16 +327,6 @@ impl PlaneMesh<'_> {
             (v < self.vertex_count).then(|| self.vertices.row3_f64(v))
         };
         Some([corner(0)?, corner(1)?, corner(2)?])
-    }
-}
-
-/// `|row|²` of row `i` of an (N, 3) array.
-#[inline(always)]
-fn squared_length(values: FloatSlice<'_>, i: usize) -> f64 {
-    let squared = |r: [f64; 3]| r[0] * r[0] + r[1] * r[1] + r[2] * r[2];
-    match values {
-        FloatSlice::F32(v) => squared([v[3 * i], v[3 * i + 1], v[3 * i + 2]].map(f64::from)),
-        FloatSlice::F64(v) => squared([v[3 * i], v[3 * i + 1], v[3 * i + 2]]),
     }
 }
 
