@@ -16,15 +16,6 @@ use pyo3::PyResult;
 /// leaves of more than 64 triangles themselves, the other layouts take any size.
 pub const MAX_LEAF_SIZE: usize = 255;
 
-/// The fewest triangles a new BVH builds straight into its wide layout
-/// ([`BuildOptions::build_first`]): 2 × 4,096, where the direct builder's two top subtrees are
-/// big enough to be built as parallel tasks of their own. Below, the binary builder's parallel
-/// recursion then the layout answers sooner on two threads: 10,000 rays' first answer on a
-/// prefix of the bunny took 0.94× the time through the tree at 8,000 triangles, 1.23–1.34× at
-/// 9,000 and 1.2–1.6× from 10,000 to 50,000 (`bench/python_first_answer.py --baseline`,
-/// BENCHMARKS.md "First answer").
-pub const DIRECT_BUILD_MIN_TRIANGLES: usize = 8192;
-
 /// What a BVH is built from: the constructor's arguments, checked.
 #[derive(Clone, Debug)]
 pub struct BuildOptions {
@@ -116,14 +107,12 @@ impl BuildOptions {
 
     /// What a new BVH builds first: the layout straight from `mesh`, with no build tree, where
     /// the library can ([`LayoutKind::builds_direct`]: binned SAH without optimization into wide
-    /// nodes; the same answers as the layout of [`BuildOptions::build`]'s tree, whose nodes
-    /// differ only in leaves of four triangles or fewer) and it answers sooner (meshes of
-    /// [`DIRECT_BUILD_MIN_TRIANGLES`] or more); the tree otherwise.
+    /// nodes of meshes large enough that it is sooner; the same answers as the layout of
+    /// [`BuildOptions::build`]'s tree, whose nodes differ only in leaves of four triangles or
+    /// fewer); the tree otherwise.
     pub fn build_first(&self, mesh: &TriangleMesh) -> FirstBuild {
         let (builder, options) = self.builder_and_options();
-        let direct = mesh.triangle_count() >= DIRECT_BUILD_MIN_TRIANGLES
-            && self.layout.builds_direct(builder, &options);
-        if !direct {
+        if !self.layout.builds_direct(mesh, builder, &options) {
             return FirstBuild::Tree(builder.build(mesh, &options));
         }
         let layout_options = LayoutOptions::default();

@@ -394,7 +394,7 @@ impl Input {
         options: &LayoutOptions,
     ) -> Option<(AnyLayout, f64, String)> {
         let (builder, builder_options) = (build.builder_name(), build.builder_options());
-        if self.saved.is_some() || !layout.builds_direct(builder, &builder_options) {
+        if self.saved.is_some() || !layout.builds_direct(&self.mesh, builder, &builder_options) {
             return None;
         }
         let start = Instant::now();

@@ -104,9 +104,19 @@ impl LayoutKind {
     }
 }
 
+/// The fewest triangles [`LayoutKind::build_and_lay_out`] builds straight into wide nodes:
+/// 2 × 4,096, where the direct builder's two top subtrees are big enough to be built as
+/// parallel tasks of their own. Below, the binary builder's parallel recursion then the layout
+/// is done sooner on two threads: 10,000 rays' first answer from Python on a prefix of the
+/// bunny took 0.94× the time through the tree at 8,000 triangles, 1.23–1.34× at 9,000 and
+/// 1.2–1.6× from 10,000 to 50,000 (`bench/python_first_answer.py --baseline`, BENCHMARKS.md
+/// "First answer").
+pub const DIRECT_BUILD_MIN_TRIANGLES: usize = 8192;
+
 impl LayoutKind {
     /// Builds `mesh` by `builder` and lays it out in this layout, for callers that keep no build
-    /// tree: binned SAH without optimization into wide nodes is built straight into them
+    /// tree: binned SAH without optimization into wide nodes, on meshes of
+    /// [`DIRECT_BUILD_MIN_TRIANGLES`] or more, is built straight into them
     /// ([`WideLayout::build_direct`](super::WideLayout::build_direct): the same nodes as
     /// [`BuilderKind::build`] then [`LayoutKind::lay_out`], without the binary tree between;
     /// leaves of up to 64 triangles), anything else through the tree.
@@ -117,7 +127,7 @@ impl LayoutKind {
         builder_options: &BuilderOptions,
         options: &LayoutOptions,
     ) -> AnyLayout {
-        if self.builds_direct(builder, builder_options) {
+        if self.builds_direct(mesh, builder, builder_options) {
             let mut config = BinnedSahConfig::default();
             config.leaf.max_leaf_size = Self::leaf_size(builder, builder_options);
             match self {
@@ -136,11 +146,18 @@ impl LayoutKind {
         self.lay_out(&builder.build(mesh, builder_options), mesh, options)
     }
 
-    /// Whether [`LayoutKind::build_and_lay_out`] builds this layout straight from the mesh, with
+    /// Whether [`LayoutKind::build_and_lay_out`] builds this layout straight from `mesh`, with
     /// no build tree: binned SAH without optimization, leaves of at most 64 triangles, into wide
-    /// nodes. A caller that may need the tree later (a file, nearest points) builds it then.
-    pub fn builds_direct(self, builder: BuilderKind, builder_options: &BuilderOptions) -> bool {
-        matches!(self, LayoutKind::Wide4 | LayoutKind::Wide8)
+    /// nodes, on a mesh of [`DIRECT_BUILD_MIN_TRIANGLES`] or more. A caller that may need the
+    /// tree later (a file, nearest points) builds it then.
+    pub fn builds_direct(
+        self,
+        mesh: &TriangleMesh,
+        builder: BuilderKind,
+        builder_options: &BuilderOptions,
+    ) -> bool {
+        mesh.triangle_count() >= DIRECT_BUILD_MIN_TRIANGLES
+            && matches!(self, LayoutKind::Wide4 | LayoutKind::Wide8)
             && builder == BuilderKind::BinnedSah
             && !builder_options.optimize
             && Self::leaf_size(builder, builder_options) <= 64
@@ -225,12 +242,15 @@ impl TraversalKernel for AnyLayout {
 mod tests {
     use super::*;
     use crate::glam::Vec3;
-    use crate::mesh::procedural::icosphere;
+    use crate::mesh::procedural::{icosphere, torus};
     use crate::Accelerator;
 
     #[test]
     fn building_straight_into_a_layout_answers_as_building_a_tree_first() {
-        let mesh = icosphere(Vec3::ZERO, 1.0, 3);
+        // Just over DIRECT_BUILD_MIN_TRIANGLES (64 × 65 × 2 = 8,320), so that the wide layouts
+        // of binned SAH without optimization are built straight.
+        let mesh = torus(Vec3::ZERO, 1.0, 0.4, 64, 65);
+        assert!(mesh.triangle_count() >= DIRECT_BUILD_MIN_TRIANGLES);
         let rays: Vec<Ray> = (0..400)
             .map(|k| {
                 let a = k as f32 * 0.37;

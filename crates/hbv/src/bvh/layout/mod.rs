@@ -20,7 +20,7 @@ mod stack;
 mod wide;
 
 pub use binarize::binarize;
-pub use kind::{AnyLayout, LayoutKind, LayoutOptions};
+pub use kind::{AnyLayout, LayoutKind, LayoutOptions, DIRECT_BUILD_MIN_TRIANGLES};
 pub use ordered::OrderedLayout;
 pub use recursive::RecursiveLayout;
 pub use skip::SkipLayout;
